@@ -8,9 +8,9 @@
   inputs and references), or a DT-TMM scheme of any of them (a chain's step is one data-driven kernel compiled
   once per variant);
 * a DT-TMM scheme of a planar model whose generated step iterates with one implicit articulated sweep per
-  iteration (:mod:`ctmm.compiled_sweep_newton`, O(n): linear hinge laws, no modal bodies, no loops) has at most
-  :data:`SCHEME_SWEEP_MAXIMUM_COORDINATES` coordinates (measured up to there: 0.1-0.2 of the numpy step, first
-  compile ~3 s), another planar model at most :data:`SCHEME_MAXIMUM_COORDINATES` (with feedback loops
+  iteration (:mod:`ctmm.compiled_sweep_newton`, O(n): linear hinge laws, no loops) and has no modal bodies at most
+  :data:`SCHEME_SWEEP_MAXIMUM_COORDINATES` coordinates (measured up to there: at most 0.13 of the numpy step, first
+  compile <= 3 s), another planar model at most :data:`SCHEME_MAXIMUM_COORDINATES` (with feedback loops
   :data:`SCHEME_LOOPS_MAXIMUM_COORDINATES`: the numpy path's loops cost more than the generated tangent there) and
   a spatial model at most :data:`SCHEME_MAXIMUM_VELOCITIES` velocities: their generated Newton step forms the
   ``n x n`` tangent of the sweep (``2 n`` directional derivatives, :mod:`ctmm.mapped_tangent`) and factors it,
@@ -52,11 +52,11 @@ N = 5: numpy 0.83 ms/step, first generated call 0.99 s (break-even 1 200 steps),
 1-D chain of 100 masses: 0.82 ms/step, 1.05 s (1 300 steps), 0.2 s.  At :data:`MINIMUM_STEPS` the first
 compile is at most about half the numpy time of those runs.
 
-DT-TMM schemes (``benchmarks/compiled_schemes_default.py``, Newmark, dt = 1 ms, CPU time, load ~6 on 2 cores,
+DT-TMM schemes (``benchmarks/compiled_schemes_default.py``, Newmark, dt = 1 ms, CPU time, load 5-6 on 2 cores,
 session 13; generated step on the loaded library / numpy step, first generated call), pendulum chains with the
-implicit-sweep iteration (from 8 coordinates): N = 10: 7.0 / 585 us (0.012), 1.5 s; N = 20: 39 / 1057 us (0.037),
-1.8 s; N = 40: 70 / 1315 us (0.053), 2.1 s; N = 80: 132 / 1865 us (0.071), 2.1 s; N = 150: 199 / 1969 us (0.10),
-2.6 s; N = 300: 447 / 2730 us (0.16), 3.2 s.  Session 12 (load 12-16), with the ``n x n`` tangent: planar
+implicit-sweep iteration (from 8 coordinates): N = 10: 7.4 / 648 us (0.011), 1.9 s; N = 15: 16 / 621 us (0.025),
+2.9 s; N = 20: 39 / 1199 us (0.033), 1.9 s; N = 40: 78 / 1324 us (0.059), 2.4 s; N = 80: 144 / 1772 us (0.081),
+2.6 s; N = 150: 235 / 1767 us (0.13), 2.6 s; N = 300: 330 / 2492 us (0.13), 2.8 s.  Session 12 (load 12-16), with the ``n x n`` tangent: planar
 pendulum chains N = 5:
 10.8 / 633 us, 2.4 s; N = 10: 151 / 895 us, 3.8 s; N = 15: 255 / 949 us (ratio 0.27), 5.0 s; N = 20 (sweep
 folded): 1362 / 932 us (ratio 1.5); N = 40: 5.7 / 1.5 ms (3.9); N = 80: 20.3 / 2.0 ms (10).  With a PD loop on
@@ -156,8 +156,9 @@ on numpy unless ``compiled=True``."""
 SCHEME_SWEEP_MAXIMUM_COORDINATES = 300
 """Largest planar model (coordinates) without loops whose DT-TMM schemes the default generates where the generated
 step iterates with the implicit sweep (:mod:`ctmm.compiled_sweep_newton`: linear hinge laws, no modal bodies; one
-articulated sweep per iteration, O(n)): measured generated / numpy step 0.012 at 10 coordinates, 0.071 at 80 and 0.16 at 300, first compile 1.5-3.2 s
-CPU (pendulum chains, folded from 20 bodies; module docstring); not measured beyond."""
+articulated sweep per iteration, O(n)): measured generated / numpy step 0.011 at 10 coordinates, 0.081 at 80 and 0.13 at 300, first compile 1.9-2.9 s
+CPU (pendulum chains, folded from 20 bodies; module docstring); not measured beyond, nor for modal bodies (which the
+sweep covers, tangent="sweep", but whose default limit stays :data:`SCHEME_MAXIMUM_COORDINATES`)."""
 SCHEME_LOOPS_MAXIMUM_COORDINATES = 30
 """Largest planar model (coordinates) with feedback loops (a ``ControlledModel``) whose DT-TMM schemes the default
 generates: the numpy path closes the loops around its stepper (about 0.7 ms per body and step), the generated step
@@ -186,7 +187,7 @@ def _scheme_size_refusal(system: Any, plant: PlanarModel | SpatialModel) -> str 
         from .compiled_sweep_newton import sweep_refusal
 
         loops = system is not plant and bool(getattr(system, "loops", ()))
-        sweep = not loops and not sweep_refusal(plant)
+        sweep = not loops and not sweep_refusal(plant) and not any(len(index) for index in plant.modal_index)
         limit = SCHEME_LOOPS_MAXIMUM_COORDINATES if loops else \
             SCHEME_SWEEP_MAXIMUM_COORDINATES if sweep else SCHEME_MAXIMUM_COORDINATES
         size, what = plant.n_coordinates, "coordinates" + (" with loops" if loops else "")

@@ -55,7 +55,7 @@ from .compiled_parameters import compile_refusal, compiled_actuators, parameter_
 from .compiled_newton_weighting import inverse_mass_terms, mapped_weighted_residual, weighted_residual_terms
 from .compiled_scene import symbolic_accelerations_with_inputs
 from .compiled_scene_fold import folded_accelerations_with_inputs, scheme_fold_period
-from .compiled_sweep_newton import sweep_iteration, sweep_refusal
+from .compiled_sweep_newton import iteration_count, sweep_iteration, sweep_refusal
 from .errors import ConvergenceError, ModelError
 from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
 from .mapped_tangent import residual_terms as mapped_residual_terms, tangent_construction
@@ -447,7 +447,7 @@ class CompiledSceneScheme(SchemeHooks):
             lambda z, q_hat_k, v_hat_k, w_k, g_k, fraction: iterate(z, q_hat_k, v_hat_k, w_k, g_k,
                                                                     t0 + (k + fraction) * h, u_in, p_in,
                                                                     controller, fraction * h),
-            self.max_iterations, y[6 * n:6 * n + len(STATUS)])
+            iteration_count(self.tangent, self.max_iterations), y[6 * n:6 * n + len(STATUS)])
         history_out = ca.if_else(failed, ca.MX.nan(6 * n, 1), ca.vertcat(*new))
         out = [history_out, status]
         if self.controller_size:
@@ -499,12 +499,12 @@ def not_converged(compiled: Any, row: np.ndarray, h: float, partial: Any = None,
                   ) -> ConvergenceError:
     """The :class:`ConvergenceError` of a stored state ``row`` whose status says a step did not converge (its step,
     time and residual; ``partial``: the result before it; ``offset``: steps before the run's step count began)."""
-    status = compiled.status_index
-    step = offset + int(row[status])
+    status, tangent = compiled.status_index, getattr(compiled, "tangent", None)
+    step, kind = offset + int(row[status]), "sweep" if tangent == "sweep" else "Newton"
     return ConvergenceError(
         f"generated implicit DT-TMM step {step} (t = {step * h:.6g} s) did not converge: residual max|delta qdd| = "
-        f"{row[status + 1]:.3e} after {compiled.max_iterations} Newton iterations (tolerance "
-        f"{compiled.tolerance:g}); reduce dt", time=step * h, partial_result=partial)
+        f"{row[status + 1]:.3e} after {iteration_count(tangent, compiled.max_iterations)} {kind} iterations "
+        f"(tolerance {compiled.tolerance:g}); reduce dt", time=step * h, partial_result=partial)
 
 
 def reused_or_built(kind: type, compiled: Any, model: Any, scheme: Scheme, store_every: int, **options: Any) -> Any:

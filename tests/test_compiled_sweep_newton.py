@@ -1,11 +1,11 @@
 """The O(N) implicit-sweep iteration of the generated planar DT-TMM schemes (:mod:`ctmm.compiled_sweep_newton`).
 
-(1) one iterate is ``(M + g C + w K)^-1 (M qddot(q, v) + (w K + g C) a)`` with ``M``, ``qddot`` from the Lagrange
-equations of :mod:`ctmm.reference.planar_lagrange` and ``K``, ``C`` the hinge laws' stiffness and damping written
-here (global equations, no sweep); (2) the generated step with ``tangent="sweep"`` equals the Python implicit
-stepper to round-off for every scheme, straight-line and folded; (3) it is the default from 8 coordinates where it
-applies; (4) what it does not cover is refused by name; (5) non-convergence is a ConvergenceError with the result so
-far.
+(1) the root of the scheme's equations on the Lagrange models of :mod:`ctmm.reference.planar_lagrange` /
+:mod:`ctmm.reference.flexible_lagrange` (global equations, no sweep) is a fixed point of one iterate, which contracts
+towards it; (2) the generated step with ``tangent="sweep"`` equals the Python implicit stepper to round-off for every
+scheme, straight-line and folded, on a stiff bushing and at large steps (a modal beam: ``tests/test_mapped_tangent.py``);
+(3) it is the default from 8 coordinates where it applies; (4) what it does not cover is refused by name; (5)
+non-convergence is a ConvergenceError with the result so far.
 """
 from __future__ import annotations
 
@@ -20,7 +20,9 @@ from ctmm.compiled_scene_schemes import CompiledSceneScheme, simulate_scheme_gen
 from ctmm.compiled_sweep_newton import implicit_accelerations, sweep_refusal
 from ctmm.errors import ConvergenceError, ModelError
 from ctmm.mapped_tangent import MAPPED_MIN_COORDINATES
-from ctmm.planar import Pinned, PlanarModel, RigidBody, simulate_implicit
+from ctmm.nonlinear_laws import CubicSpring
+from ctmm.planar import NonlinearHinge, Pinned, PlanarModel, RigidBody, simulate_implicit
+from ctmm.reference.flexible_lagrange import FlexibleLagrange
 from ctmm.reference.planar_lagrange import PlanarLagrange
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -29,22 +31,32 @@ from planar_chain import chain  # noqa: E402
 from test_compiled_scene_schemes import DP_START, VARIANTS, _label, double_pendulum, hub_beam  # noqa: E402
 
 
-def test_one_iterate_is_the_effective_inertia_solve_of_the_lagrange_equations():
-    model = double_pendulum()            # hinge h: k = 4, c = 0.3 on the relative angle q1 - q0; a harmonic load
-    lagrange = PlanarLagrange(model)
+@pytest.mark.parametrize("name", ["double_pendulum", "hub_beam"])
+def test_the_iteration_has_the_lagrange_root_as_its_fixed_point_and_contracts(name):
+    """The root ``a = qddot(q_hat + w a, v_hat + g a)`` of the Lagrange equations (no sweep: Newton with a finite-
+    difference Jacobian here) is a fixed point of one iterate, and an iterate from a perturbed ``a`` is closer to it
+    by a small factor (``w``, ``g`` of a 1 ms Newmark step)."""
+    model = double_pendulum() if name == "double_pendulum" else hub_beam()
+    lagrange = PlanarLagrange(model) if name == "double_pendulum" else FlexibleLagrange(model)
     implicit = implicit_accelerations(model, ())
+    n, p = model.n_coordinates, parameter_vector(model)
     rng = np.random.default_rng(3)
-    coupling = np.array([[1.0, -1.0], [-1.0, 1.0]])
-    stiffness, damping = 4.0 * coupling, 0.3 * coupling
-    for _ in range(3):
-        q_hat, v_hat, a = rng.standard_normal(2), rng.standard_normal(2), rng.standard_normal(2)
-        w, g, t = 0.3 * rng.random(), 0.5 * rng.random(), rng.random()
-        q, v = q_hat + w * a, v_hat + g * a
-        mass = lagrange.mass_matrix(q, t)
-        tangent = w * stiffness + g * damping
-        expected = np.linalg.solve(mass + tangent, mass @ lagrange.accelerations(q, v, t) + tangent @ a)
-        got = np.asarray(implicit(q, v, q_hat, v_hat, w, g, np.zeros(0), parameter_vector(model), t)).ravel()
-        assert np.max(np.abs(got - expected)) <= 1e-12 * (1.0 + np.max(np.abs(expected)))
+    w, g, t = 0.25e-6, 0.5e-3, 0.3
+    q_hat, v_hat = 0.5 * rng.standard_normal(n), rng.standard_normal(n)
+
+    def residual(a):
+        return a - lagrange.accelerations(q_hat + w * a, v_hat + g * a, t)
+    root = np.zeros(n)
+    for _ in range(8):
+        jacobian = np.column_stack([(residual(root + 1e-6 * e) - residual(root - 1e-6 * e)) / 2e-6 for e in np.eye(n)])
+        root = root - np.linalg.solve(jacobian, residual(root))
+    assert np.max(np.abs(residual(root))) <= 1e-9 * (1.0 + np.max(np.abs(root)))
+
+    def iterate(a):
+        return np.asarray(implicit(a, q_hat, v_hat, w, g, np.zeros(0), p, t)).ravel()
+    assert np.max(np.abs(iterate(root) - root)) <= 1e-9 * (1.0 + np.max(np.abs(root)))
+    start = root + rng.standard_normal(n) * (1.0 + np.abs(root))
+    assert np.max(np.abs(iterate(start) - root)) <= 1e-2 * np.max(np.abs(start - root))
 
 
 @pytest.mark.parametrize("scheme", VARIANTS, ids=_label)
@@ -80,21 +92,27 @@ def test_the_default_is_the_sweep_from_8_coordinates_where_it_applies():
 
 
 def test_models_outside_its_scope_are_refused_by_name():
-    beam = hub_beam()
-    assert "modal bodies ['b']" in sweep_refusal(beam)
-    with pytest.raises(ModelError, match=r"tangent='sweep' is not for a model with modal bodies \['b'\]"):
-        CompiledSceneScheme(beam, "newmark", tangent="sweep")
+    cubic = PlanarModel.chain("cubic", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0),
+                                        NonlinearHinge("k", moment_law=CubicSpring(1.0, 2.0)),
+                                        RigidBody.uniform_link("b", mass=1.0, length=1.0)])
+    assert "nonlinear hinge laws ['k']" in sweep_refusal(cubic)
+    assert "feedback loops" in sweep_refusal(double_pendulum(), loops=object())
+    with pytest.raises(ModelError, match=r"tangent='sweep' is not for a model with nonlinear hinge laws \['k'\]"):
+        CompiledSceneScheme(cubic, "newmark", tangent="sweep")
     with pytest.raises(ModelError, match="tangent must be .*'sweep'.*got 'krylov'"):
         CompiledSceneScheme(double_pendulum(), "newmark", tangent="krylov")
 
 
 def test_a_step_that_does_not_converge_is_a_convergence_error_with_the_result_so_far():
-    model = PlanarModel.chain("p", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0)])
+    """Fast motion, a large step and one Newton iteration allowed (4 sweep iterates): the first step is named with
+    its residual and iterate count."""
+    model = double_pendulum()
     compiled = CompiledSceneScheme(model, "newmark", tangent="sweep", max_iterations=1)
-    with pytest.raises(ConvergenceError, match=r"step 1 \(t = 0.01 s\) did not converge: residual") as info:
-        simulate_scheme_generated(model, np.array([1.0]), np.array([0.0]), t_final=0.1, dt=0.01,
-                                  compiled=compiled)
-    assert info.value.time == pytest.approx(0.01)
+    with pytest.raises(ConvergenceError, match=r"step 1 \(t = 0.05 s\) did not converge: residual max\|delta qdd\| = "
+                                               r"\S+ after 4 sweep iterations \(tolerance 1e-10\)") as info:
+        simulate_scheme_generated(model, DP_START[0], 10.0 * DP_START[1], t_final=1.0, dt=0.05, compiled=compiled,
+                                  max_iterations=1, stability_check="ignore")
+    assert info.value.time == pytest.approx(0.05)
     assert len(info.value.partial_result.t) == 1
 
 
@@ -110,3 +128,16 @@ def test_a_stiff_bushing_equals_the_python_stepper_with_the_stricter_stop():
     python = simulate_implicit(model, Q0, V0, t_final=0.1, dt=1e-3)
     assert np.max(np.abs(generated.q - python.q)) <= 1e-11
     assert np.max(np.abs(generated.qdot - python.qdot)) <= 1e-10
+
+
+def test_large_steps_of_a_fast_chain_converge_with_more_iterates_than_newton_needs():
+    """A 10-link chain at ~2 rad/s, dt = 20 ms: the linear iteration needs more than 20 iterates on some steps (up
+    to ``ITERATIONS_PER_NEWTON max_iterations``); it converges where the Python stepper does, to its answer."""
+    model = chain(10)
+    rng = np.random.default_rng(1)
+    q0, v0 = rng.standard_normal(10), 2.0 * rng.standard_normal(10)
+    compiled = CompiledSceneScheme(model, "newmark", tangent="sweep")
+    generated = simulate_scheme_generated(model, q0, v0, t_final=1.0, dt=0.02, compiled=compiled,
+                                          stability_check="ignore")
+    python = simulate_implicit(model, q0, v0, t_final=1.0, dt=0.02, stability_check="ignore")
+    assert np.max(np.abs(generated.q - python.q)) <= 1e-10

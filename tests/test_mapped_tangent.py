@@ -78,12 +78,13 @@ def test_a_40_body_chain_folded_with_the_mapped_tangent_equals_the_python_steppe
     assert generated.extra["newton_iterations"] <= 4 * 30
 
 
+@pytest.mark.parametrize("tangent", ["mapped", "sweep"])       # sweep: ctmm.compiled_sweep_newton, modal block implicit
 @pytest.mark.parametrize("scheme", ["newmark", "houbolt", "wilson_theta"])
-def test_the_mapped_tangent_on_a_modal_beam_equals_the_python_stepper(scheme):
+def test_the_mapped_tangent_on_a_modal_beam_equals_the_python_stepper(scheme, tangent):
     model = hub_beam()
     q0, v0 = np.zeros(model.n_coordinates), np.zeros(model.n_coordinates)
     q0[:2], v0[0] = (0.3, 0.02), 2.0
-    compiled = CompiledSceneScheme(model, scheme, tangent="mapped")
+    compiled = CompiledSceneScheme(model, scheme, tangent=tangent)
     generated = simulate_scheme_generated(model, q0, v0, t_final=0.1, dt=2e-3, scheme=scheme, compiled=compiled)
     python = simulate_implicit(model, q0, v0, t_final=0.1, dt=2e-3, scheme=scheme)
     assert np.max(np.abs(generated.q - python.q)) <= 1e-10
