@@ -29,7 +29,8 @@ added later, measured alone) Newmark on the spatial double pendulum at dt = 10 m
 (issues 12/13, added later, measured alone) the generated RK4 of the 100-mass chain with a real-time loop;
 ``compiled_schemes_planar`` (issue 13, added later, measured alone) the generated Newmark of the N = 5 chain;
 ``compiled_schemes_default`` (issue 13, added later, measured alone) the generated and the numpy Newmark step of
-the N = 15 chain (the default's largest planar scheme); ``chain_default_limits`` (issue 13, added later,
+the N = 15 and N = 100 chains (the generated step iterating with the implicit sweep since session 13: the N = 15
+generated case re-based, the N = 100 cases added); ``chain_default_limits`` (issue 13, added later,
 measured alone) the default's chain kind check and a cached generated Newmark call of the 1 002-mass chain.  Left out (too long
 for a baseline under ~3 min, or needing a build): larger sizes and step ladders, the external
 libraries and references the benchmarks compare with (python-control, pinocchio, MuJoCo, global
@@ -473,20 +474,21 @@ def _compiled_schemes_planar(t: Timings) -> None:
 
 def _compiled_schemes_default(t: Timings) -> None:
     bench = importlib.import_module("compiled_schemes_default")
-    model = bench.planar_model(15)
-    zero = np.zeros(model.n_coordinates)
     schemes = importlib.import_module("ctmm.compiled_scene_schemes")
-    compiled, steps = schemes.CompiledSceneScheme(model, "newmark"), 20
     planar = importlib.import_module("ctmm.planar")
-    for case, call in (("generated", lambda: schemes.simulate_scheme_generated(
-                            model, zero, zero, t_final=steps * bench.DT, dt=bench.DT, compiled=compiled,
-                            stability_check="ignore")),
-                       ("numpy", lambda: planar.simulate_implicit(model, zero, zero, t_final=steps * bench.DT,
-                                                                  dt=bench.DT, stability_check="ignore"))):
-        t.add("compiled_schemes_default", f"{case}_newmark_chain_n15", call, per="step", count=steps,
-              configuration=f"planar pendulum chain N=15 (the default's largest planar scheme), Newmark, {case} "
-                            f"step ({'library compiled' if case == 'generated' else 'transfer-form Newton'}), "
-                            f"dt={bench.DT:g} s, {steps} steps")
+    for n in (15, 100):
+        model, steps = bench.planar_model(n), 20
+        zero = np.zeros(model.n_coordinates)
+        compiled = schemes.CompiledSceneScheme(model, "newmark")          # the implicit-sweep iteration (O(N))
+        for case, call in (("generated", lambda model=model, zero=zero, compiled=compiled:
+                            schemes.simulate_scheme_generated(model, zero, zero, t_final=steps * bench.DT, dt=bench.DT,
+                                                              compiled=compiled, stability_check="ignore")),
+                           ("numpy", lambda model=model, zero=zero: planar.simulate_implicit(
+                               model, zero, zero, t_final=steps * bench.DT, dt=bench.DT, stability_check="ignore"))):
+            how = "library compiled, implicit-sweep iteration" if case == "generated" else "transfer-form Newton"
+            t.add("compiled_schemes_default", f"{case}_newmark_chain_n{n}", call, per="step", count=steps,
+                  configuration=f"planar pendulum chain N={n}, Newmark, {case} step ({how}), dt={bench.DT:g} s, "
+                                f"{steps} steps")
 
 
 def _kernel_cache(t: Timings) -> None:

@@ -1,8 +1,10 @@
 """Where the generated DT-TMM schemes of planar and spatial models pay: CPU per step against the numpy stepper.
 
-The generated Newton step of planar and spatial schemes (:mod:`ctmm.compiled_scene_schemes`,
-:mod:`ctmm.compiled_spatial_schemes`) forms its ``n x n`` tangent (``2 n`` directional derivatives of the sweep
-beyond :data:`ctmm.mapped_tangent.MAPPED_MIN_COORDINATES`) and factors it: O(N^2 .. N^3) per Newton iteration.
+The generated Newton step of spatial schemes (:mod:`ctmm.compiled_spatial_schemes`) and of planar schemes the
+implicit sweep does not cover forms its ``n x n`` tangent (``2 n`` directional derivatives of the sweep beyond
+:data:`ctmm.mapped_tangent.MAPPED_MIN_COORDINATES`) and factors it: O(N^2 .. N^3) per Newton iteration.  Planar
+schemes with linear hinge laws and no modal bodies iterate from 8 coordinates with one implicit articulated sweep
+per iterate (:mod:`ctmm.compiled_sweep_newton`, O(N)): the planar rows from N = 10 on measure that iteration.
 The numpy steppers iterate on the transfer form (planar: one linearised articulated sweep per iteration, O(N);
 spatial: the sweep tangent, :func:`ctmm.spatial.implicit.simulate_spatial_implicit`).  So the generated step wins
 on small models by far and loses on large ones; this benchmark finds the crossover that
@@ -58,7 +60,7 @@ import ctmm  # noqa: E402
 DT = 1e-3
 NUMPY_STEPS = 20
 TIMED_CPU_S = 0.5
-PLANAR_SIZES = (2, 5, 10, 12, 15, 20, 40, 80)
+PLANAR_SIZES = (2, 5, 10, 12, 15, 20, 40, 80, 150, 300)
 SPATIAL_SIZES = (2, 3, 5, 10)
 """(N = 20: gcc passed its 600 s wall-clock limit on the generated Newmark, load ~15 on 2 cores, session 12.)"""
 LOOP_SIZES = (3, 15, 30)

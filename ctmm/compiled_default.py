@@ -7,10 +7,13 @@
 * the run is a fixed-step RK4 of a 1-D chain, a planar or a spatial model (plain, or with feedback loops,
   inputs and references), or a DT-TMM scheme of any of them (a chain's step is one data-driven kernel compiled
   once per variant);
-* a DT-TMM scheme of a planar model has at most :data:`SCHEME_MAXIMUM_COORDINATES` coordinates (with feedback
-  loops :data:`SCHEME_LOOPS_MAXIMUM_COORDINATES`: the numpy path's loops cost more than the generated tangent
-  there) and one of a spatial model at most :data:`SCHEME_MAXIMUM_VELOCITIES` velocities: their generated Newton
-  step forms the ``n x n`` tangent of the sweep (``2 n`` directional derivatives, :mod:`ctmm.mapped_tangent`) and factors it,
+* a DT-TMM scheme of a planar model whose generated step iterates with one implicit articulated sweep per
+  iteration (:mod:`ctmm.compiled_sweep_newton`, O(n): linear hinge laws, no loops) and has no modal bodies at most
+  :data:`SCHEME_SWEEP_MAXIMUM_COORDINATES` coordinates (measured up to there: at most 0.13 of the numpy step, first
+  compile <= 3 s), another planar model at most :data:`SCHEME_MAXIMUM_COORDINATES` (with feedback loops
+  :data:`SCHEME_LOOPS_MAXIMUM_COORDINATES`: the numpy path's loops cost more than the generated tangent there) and
+  a spatial model at most :data:`SCHEME_MAXIMUM_VELOCITIES` velocities: their generated Newton step forms the
+  ``n x n`` tangent of the sweep (``2 n`` directional derivatives, :mod:`ctmm.mapped_tangent`) and factors it,
   O(n^2 .. n^3) per iteration, where the numpy planar stepper iterates with one linearised articulated sweep
   (O(n)), so beyond these sizes the generated step is slower (planar) or its first compile too long (spatial);
 * a chain is not larger than its kind allows: :data:`MAXIMUM_BANDED_CHAIN_POINTS` points for a *banded* chain (every
@@ -37,10 +40,12 @@ result's ``info["compiled"]``.  Warnings raised while the generated path was tri
 ran (the numpy path shows its own).  A run that fails (:class:`~ctmm.errors.SimulationError`) fails as it
 does on the numpy path (the contract of the generated paths: the numpy answer to round-off, failures at the
 same step and time); it is not repeated.  One exception: the Newton iteration of a planar or spatial DT-TMM
-scheme.  Both paths converge to the same step to round-off, but the generated one forms the exact tangent and
-the numpy one iterates with the transfer form, so where a state grows fast (an unstable closed loop) one may
-still converge where the other stops (``tests/test_loop_convergence_hint.py``: 75 steps apart, both naming
-the loops that may be unstable).  The choice depends on the call only, never on what the disk cache
+scheme.  Both paths converge to the same step to round-off, but the generated one forms the exact tangent (or,
+from 8 planar coordinates, iterates with the implicit sweep, :mod:`ctmm.compiled_sweep_newton`, linearly) and
+the numpy one iterates with the transfer form, so where a state grows fast (an unstable closed loop, a chain
+whipping at large steps) one may still converge where the other stops (``tests/test_loop_convergence_hint.py``:
+75 steps apart, both naming the loops that may be unstable; a 24-link chain at ~2 rad/s and dt = 20 ms: the sweep
+stopped at step 10, the mapped Newton tangent at step 11).  The choice depends on the call only, never on what the disk cache
 holds, so the same call takes the same path on every machine with a compiler.
 
 Measured (CPU time, cold cache, 200-step RK4 runs, load 13-15 on 2 cores, session 11): planar pendulum chain
@@ -49,8 +54,12 @@ N = 5: numpy 0.83 ms/step, first generated call 0.99 s (break-even 1 200 steps),
 1-D chain of 100 masses: 0.82 ms/step, 1.05 s (1 300 steps), 0.2 s.  At :data:`MINIMUM_STEPS` the first
 compile is at most about half the numpy time of those runs.
 
-DT-TMM schemes (``benchmarks/compiled_schemes_default.py``, Newmark, dt = 1 ms, CPU time, load 12-16 on 2 cores,
-session 12; generated step on the loaded library / numpy step, first generated call): planar pendulum chains N = 5:
+DT-TMM schemes (``benchmarks/compiled_schemes_default.py``, Newmark, dt = 1 ms, CPU time, load 5-6 on 2 cores,
+session 13; generated step on the loaded library / numpy step, first generated call), pendulum chains with the
+implicit-sweep iteration (from 8 coordinates): N = 10: 7.4 / 648 us (0.011), 1.9 s; N = 15: 16 / 621 us (0.025),
+2.9 s; N = 20: 39 / 1199 us (0.033), 1.9 s; N = 40: 78 / 1324 us (0.059), 2.4 s; N = 80: 144 / 1772 us (0.081),
+2.6 s; N = 150: 235 / 1767 us (0.13), 2.6 s; N = 300: 330 / 2492 us (0.13), 2.8 s.  Session 12 (load 12-16), with the ``n x n`` tangent: planar
+pendulum chains N = 5:
 10.8 / 633 us, 2.4 s; N = 10: 151 / 895 us, 3.8 s; N = 15: 255 / 949 us (ratio 0.27), 5.0 s; N = 20 (sweep
 folded): 1362 / 932 us (ratio 1.5); N = 40: 5.7 / 1.5 ms (3.9); N = 80: 20.3 / 2.0 ms (10).  With a PD loop on
 every hinge: N = 15: 0.46 / 15.3 ms (0.030), 7.0 s; N = 30: 2.0 / 19.3 ms (0.10), 17 s.  Spatial revolute chains
@@ -79,6 +88,7 @@ from .system import Chain
 
 __all__ = ["MAXIMUM_BANDED_CHAIN_POINTS", "MAXIMUM_CHAIN_POINTS", "MINIMUM_STEPS",
            "SCHEME_LOOPS_MAXIMUM_COORDINATES", "SCHEME_MAXIMUM_COORDINATES", "SCHEME_MAXIMUM_VELOCITIES",
+           "SCHEME_SWEEP_MAXIMUM_COORDINATES",
            "default_refusal", "dense_chain_reason", "is_size_refusal", "note_size_refusal", "run_default"]
 
 MINIMUM_STEPS = 5000
@@ -141,9 +151,16 @@ def _names(names: list) -> str:
 
 
 SCHEME_MAXIMUM_COORDINATES = 15
-"""Largest planar model (coordinates) without loops whose DT-TMM schemes the default generates: the generated step
-was 0.27 of the numpy step at 15 coordinates and 1.5 times it at 20 (module docstring); larger ones stay on numpy
-unless ``compiled=True``."""
+"""Largest planar model (coordinates) without loops whose DT-TMM schemes the default generates where its generated
+step forms the ``n x n`` tangent (nonlinear hinge laws, modal bodies: not :data:`SCHEME_SWEEP_MAXIMUM_COORDINATES`):
+that step was 0.27 of the numpy step at 15 coordinates and 1.5 times it at 20 (module docstring); larger ones stay
+on numpy unless ``compiled=True``."""
+SCHEME_SWEEP_MAXIMUM_COORDINATES = 300
+"""Largest planar model (coordinates) without loops whose DT-TMM schemes the default generates where the generated
+step iterates with the implicit sweep (:mod:`ctmm.compiled_sweep_newton`: linear hinge laws, no modal bodies; one
+articulated sweep per iteration, O(n)): measured generated / numpy step 0.011 at 10 coordinates, 0.081 at 80 and 0.13 at 300, first compile 1.9-2.9 s
+CPU (pendulum chains, folded from 20 bodies; module docstring); not measured beyond, nor for modal bodies (which the
+sweep covers, tangent="sweep", but whose default limit stays :data:`SCHEME_MAXIMUM_COORDINATES`)."""
 SCHEME_LOOPS_MAXIMUM_COORDINATES = 30
 """Largest planar model (coordinates) with feedback loops (a ``ControlledModel``) whose DT-TMM schemes the default
 generates: the numpy path closes the loops around its stepper (about 0.7 ms per body and step), the generated step
@@ -165,12 +182,20 @@ _SCHEME_SIZE_REFUSAL = "a DT-TMM scheme of"
 
 def _scheme_size_refusal(system: Any, plant: PlanarModel | SpatialModel) -> str | None:
     """Why a DT-TMM scheme of ``system`` (on ``plant``) stays on numpy by its size
-    (:data:`SCHEME_MAXIMUM_COORDINATES`, with feedback loops :data:`SCHEME_LOOPS_MAXIMUM_COORDINATES`,
+    (:data:`SCHEME_MAXIMUM_COORDINATES`, :data:`SCHEME_SWEEP_MAXIMUM_COORDINATES` where the generated step iterates
+    with the implicit sweep, with feedback loops :data:`SCHEME_LOOPS_MAXIMUM_COORDINATES`,
     :data:`SCHEME_MAXIMUM_VELOCITIES`), or ``None``."""
     if isinstance(plant, PlanarModel):
+        from .compiled_sweep_newton import sweep_refusal
+
         loops = system is not plant and bool(getattr(system, "loops", ()))
-        limit = SCHEME_LOOPS_MAXIMUM_COORDINATES if loops else SCHEME_MAXIMUM_COORDINATES
+        sweep = not loops and not sweep_refusal(plant) and not any(len(index) for index in plant.modal_index)
+        limit = SCHEME_LOOPS_MAXIMUM_COORDINATES if loops else \
+            SCHEME_SWEEP_MAXIMUM_COORDINATES if sweep else SCHEME_MAXIMUM_COORDINATES
         size, what = plant.n_coordinates, "coordinates" + (" with loops" if loops else "")
+        if sweep and size > limit:
+            return (f"{_SCHEME_SIZE_REFUSAL} {size} {what} (> {limit}: the generated step (one implicit sweep per "
+                    "iteration) was not measured beyond; give compiled=True)")
     else:
         size, limit, what = plant.n_velocities, SCHEME_MAXIMUM_VELOCITIES, "velocities"
     if size > limit:

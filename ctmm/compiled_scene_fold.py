@@ -120,9 +120,9 @@ def fold_period(model: PlanarModel) -> int:
 
 def scheme_fold_period(model: PlanarModel, tangent: str, loops: Any) -> int:
     """Bodies per folded segment of the sweep of a generated DT-TMM scheme of ``model`` (0: straight-line code):
-    folded where its tangent is ``"mapped"``, it has no ``loops`` (``None``), it folds (:func:`fold_period`) and
+    folded where its tangent is ``"mapped"`` or ``"sweep"``, it has no ``loops`` (``None``), it folds (:func:`fold_period`) and
     has at least :data:`SCHEME_FOLD_MIN_BODIES` bodies."""
-    if tangent != "mapped" or loops is not None or model.n_bodies < SCHEME_FOLD_MIN_BODIES:
+    if tangent not in ("mapped", "sweep") or loops is not None or model.n_bodies < SCHEME_FOLD_MIN_BODIES:
         return 0
     return fold_period(model)
 
@@ -153,7 +153,7 @@ def segment_numbers(model: PlanarModel, numbers: SceneNumbers, inputs: ActuatorI
 
 
 def folded_acceleration(model: PlanarModel, numbers: SceneNumbers, inputs: ActuatorInputs | None,
-                        symbols: tuple[Any, Any, Any], period: int = 1) -> Any:
+                        symbols: tuple[Any, Any, Any], period: int = 1, implicit: bool = False) -> Any:
     """``acceleration(q, v, u, p, t) -> qddot`` (casadi.Function on MX) of a foldable chain
     (:func:`planar_fold_refusal`) swept in segments of ``period`` bodies (:func:`ctmm.segment_fold.fold_segments`).
 
@@ -167,6 +167,9 @@ def folded_acceleration(model: PlanarModel, numbers: SceneNumbers, inputs: Actua
         The actuators' loads as expressions of ``u``.
     period : int
         Bodies per segment [-].
+    implicit : bool
+        ``implicit(q, v, q_hat, v_hat, w, g, u, p, t) -> qddot`` instead: the hinge laws at ``(q_hat, v_hat)`` made
+        implicit by the joint tangents ``kappa = k w + c g`` (the sweep of :mod:`ctmm.compiled_sweep_newton`).
 
     Raises
     ------
@@ -185,33 +188,52 @@ def folded_acceleration(model: PlanarModel, numbers: SceneNumbers, inputs: Actua
     per_segment = _numbers_map(entries, u_sx, p_sx, t_sx)
     common = _common_constants(entries)
     parent, q, v = ca.SX.sym("parent", 2), ca.SX.sym("q", period), ca.SX.sym("v", period)
+    law = (ca.SX.sym("parent_hat", 2), ca.SX.sym("q_hat", period), ca.SX.sym("v_hat", period)) if implicit else \
+        (parent, q, v)                                  # where the hinge laws are evaluated
+    weights = ca.SX.sym("weights", 2)                   # (w, g) of the implicit laws
     s = ca.SX.sym("s", SEGMENT_ENTRIES * period)
-    bodies, joints = [], []
+    bodies, joints, kappa = [], [], []
     for i in range(period):
         e = [common.get(SEGMENT_ENTRIES * i + k, s[SEGMENT_ENTRIES * i + k]) for k in range(SEGMENT_ENTRIES)]
-        th_end, om_end = (parent[0], parent[1]) if i == 0 else (q[i - 1], v[i - 1])
+        th_end, om_end = (law[0][0], law[0][1]) if i == 0 else (law[1][i - 1], law[2][i - 1])
         bodies.append(rigid_body_terms(CASADI, mass=e[0], inertia=e[1], center_of_mass=(e[2], e[3]),
                                        points={"out": (e[4], e[5])}, gravity=(e[6], e[7]), theta=q[i], omega=v[i],
                                        body_force=(e[13], e[14], e[15])))
-        joints.append(revolute_terms(CASADI, angle=q[i] - th_end, rate=v[i] - om_end, stiffness=e[8], damping=e[9],
-                                     reference=e[10], reference_rate=e[11], torque=e[12]))
+        joints.append(revolute_terms(CASADI, angle=law[1][i] - th_end, rate=law[2][i] - om_end, stiffness=e[8],
+                                     damping=e[9], reference=e[10], reference_rate=e[11], torque=e[12]))
+        kappa.append(weights[0] * e[8] + weights[1] * e[9])
     q_all, v_all = ca.MX.sym("q", n), ca.MX.sym("v", n)
     u, p, t = ca.MX.sym("u", u_sx.numel()), ca.MX.sym("p", p_sx.numel()), ca.MX.sym("t")
-    Q, V = ca.reshape(q_all, period, count), ca.reshape(v_all, period, count)
-    ground = ca.DM([float(model.ground_angle[0]), 0.0])
-    parents = ground if count == 1 else ca.horzcat(ground, ca.vertcat(Q[period - 1, :count - 1],
-                                                                       V[period - 1, :count - 1]))
     columns = ca.reshape(per_segment(u, p, t), SEGMENT_ENTRIES * period, count)
-    accelerations = fold_segments(bodies, joints, ["out"] * period, [parent, q, v, s], [parents, Q, V, columns],
-                                  lambda solution: ca.vertcat(*[solution.x[i][2] for i in range(1, period + 1)]))
-    return ca.Function("acceleration", [q_all, v_all, u, p, t], [ca.reshape(accelerations, n, 1)])
+    ground = ca.DM([float(model.ground_angle[0]), 0.0])
+
+    def segments(q_in: Any, v_in: Any) -> tuple[Any, Any, Any]:
+        """Each segment's inboard (angle, rate), angles and rates (columns)."""
+        Q, V = ca.reshape(q_in, period, count), ca.reshape(v_in, period, count)
+        return ground if count == 1 else ca.horzcat(ground, ca.vertcat(Q[period - 1, :count - 1],
+                                                                       V[period - 1, :count - 1])), Q, V
+
+    inputs_in, symbols_in = [q_all, v_all], [parent, q, v, s]
+    values = [*segments(q_all, v_all), columns]
+    if implicit:
+        q_hat, v_hat, w, g = ca.MX.sym("q_hat", n), ca.MX.sym("v_hat", n), ca.MX.sym("w"), ca.MX.sym("g")
+        inputs_in += [q_hat, v_hat, w, g]
+        symbols_in += [*law, weights]
+        values += [*segments(q_hat, v_hat), ca.repmat(ca.vertcat(w, g), 1, count)]
+    accelerations = fold_segments(bodies, joints, ["out"] * period, symbols_in, values,
+                                  lambda solution: ca.vertcat(*[solution.x[i][2] for i in range(1, period + 1)]),
+                                  kappa if implicit else None)
+    return ca.Function("implicit_acceleration" if implicit else "acceleration", [*inputs_in, u, p, t],
+                       [ca.reshape(accelerations, n, 1)])
 
 
 def folded_accelerations_with_inputs(model: PlanarModel, actuators: Sequence[str],
-                                     channels: Sequence[ActuatorInputs] = (), period: int = 0) -> Any:
+                                     channels: Sequence[ActuatorInputs] = (), period: int = 0,
+                                     implicit: bool = False) -> Any:
     """:func:`ctmm.compiled_scene.symbolic_accelerations_with_inputs` folded over segments of ``period`` bodies
     (default :func:`fold_period`): ``acceleration(q, v, u, p, t)`` (casadi.Function on MX) with the inputs ``u``
-    of the ports ``actuators`` then of ``channels`` (loads per unit value).
+    of the ports ``actuators`` then of ``channels`` (loads per unit value); ``implicit``: the implicit sweep of
+    :func:`folded_acceleration` ``(q, v, q_hat, v_hat, w, g, u, p, t)``.
 
     Raises
     ------
@@ -224,7 +246,7 @@ def folded_accelerations_with_inputs(model: PlanarModel, actuators: Sequence[str
     units = [ports.inputs({name: 1.0}) for name in actuators] + list(channels)
     u, p, t = ca.SX.sym("u", len(units)), ca.SX.sym("p", parameter_vector(model).size), ca.SX.sym("t")
     return folded_acceleration(model, symbolic_numbers(model, p, t), symbolic_inputs(model, units, u), (u, p, t),
-                               period or fold_period(model) or 1)
+                               period or fold_period(model) or 1, implicit)
 
 
 def _common_constants(entries: Any) -> dict[int, float]:

@@ -23,7 +23,8 @@ generated RK4 compiles (:func:`ctmm.compiled_scene.symbolic_accelerations_with_i
   maps at steps 0 and 1, selected on the step index.
 * **Newton** -- on the residual ``r(a) = a - qddot(q_hat + b' h^2 a, v_hat + g' h a, t)`` with its exact
   tangent ``I - b' h^2 d qddot/dq - g' h d qddot/dv`` (algorithmic derivative of the sweep, :mod:`ctmm.mapped_tangent`),
-  a QR solve per iteration, at most ``max_iterations`` (each a short-circuit branch: converged steps skip the rest),
+  a QR solve per iteration (``tangent="sweep"``: O(N) iterates, :mod:`ctmm.compiled_sweep_newton`), at most
+  ``max_iterations`` (each a short-circuit branch: converged steps skip the rest),
   the stopping rule of the Python stepper (``max |delta a| <= tolerance (1 + max |a|)``).
   Same root as :func:`~ctmm.planar.implicit.simulate_implicit` (whose Newton runs on the transfer form of
   the same equations): the two agree to round-off (``tests/test_compiled_scene_schemes.py``); same iterates
@@ -54,6 +55,7 @@ from .compiled_parameters import compile_refusal, compiled_actuators, parameter_
 from .compiled_newton_weighting import inverse_mass_terms, mapped_weighted_residual, weighted_residual_terms
 from .compiled_scene import symbolic_accelerations_with_inputs
 from .compiled_scene_fold import folded_accelerations_with_inputs, scheme_fold_period
+from .compiled_sweep_newton import iteration_count, sweep_iteration, sweep_refusal
 from .errors import ConvergenceError, ModelError
 from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
 from .mapped_tangent import residual_terms as mapped_residual_terms, tangent_construction
@@ -350,8 +352,9 @@ class CompiledSceneScheme(SchemeHooks):
     rows : int
         Stored states per generated block.
     cache_dir, compiler, tangent, station_inputs
-        Of :func:`ctmm.codegen.shared_library`; the Newton tangent's construction ("mapped", "symbolic", None: by
-        size, :func:`ctmm.mapped_tangent.tangent_construction`); beam station loads that are inputs too
+        Of :func:`ctmm.codegen.shared_library`; the Newton tangent's construction ("mapped", "symbolic", "sweep":
+        :mod:`ctmm.compiled_sweep_newton`; None: by size, :func:`ctmm.mapped_tangent.tangent_construction`); beam
+        station loads that are inputs too
         (:func:`~ctmm.compiled_parameters.compiled_actuators`, :mod:`ctmm.compiled_scheme_cosim`).
 
     Attributes
@@ -374,7 +377,8 @@ class CompiledSceneScheme(SchemeHooks):
         if reason:
             raise ModelError(f"CompiledSceneScheme: {reason}")
         self.scheme = as_scheme(scheme)
-        self.tangent = tangent_construction("CompiledSceneScheme", tangent, model.n_coordinates)
+        self.tangent = tangent_construction("CompiledSceneScheme", tangent, model.n_coordinates,
+                                            sweep_refusal(model, self.loops))
         self.period = scheme_fold_period(model, self.tangent, self.loops)     # sweep folded over segments (0: not)
         self.tolerance, self.max_iterations, self.store_every, rows = newton_options(
             "CompiledSceneScheme", tolerance, max_iterations, store_every, rows)
@@ -390,15 +394,13 @@ class CompiledSceneScheme(SchemeHooks):
                                   cache_dir=cache_dir, compiler=compiler)
         (self._acceleration, *more), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, \
             loop.blocks
-        self.state_functions = tuple(more)
-        self.compile_time_s = _time.perf_counter() - start
+        self.state_functions, self.compile_time_s = tuple(more), _time.perf_counter() - start
 
     def closed_acceleration(self) -> Any:
         """``qddot = acceleration(q, v, u, p, t)`` the step solves for (casadi ``Function``): the plant's sweep with
         the inputs :attr:`actuators` (a subclass closes loops around it, :mod:`ctmm.compiled_scheme_loops`)."""
-        if self.period:
-            return folded_accelerations_with_inputs(self.model, self.actuators, (), self.period)
-        return symbolic_accelerations_with_inputs(self.model, self.actuators)
+        return folded_accelerations_with_inputs(self.model, self.actuators, (), self.period) if self.period else \
+            symbolic_accelerations_with_inputs(self.model, self.actuators)
 
     @property
     def status_index(self) -> int:
@@ -423,7 +425,7 @@ class CompiledSceneScheme(SchemeHooks):
         mapped = self.tangent == "mapped"   # columns by mapped forward derivatives (code O(sweep)), one sweep
         residual_terms = mapped_weighted_residual(self.model, self.actuators, self.period) if mapped and \
             self.loops is None else None
-        if residual_terms is None:
+        if residual_terms is None and self.tangent != "sweep":
             rates = self.iterate_acceleration(acceleration, q, v, u, p, t, c, s)
             if mapped:
                 residual_terms = mapped_residual_terms(ca.Function("rates", [q, v, u, p, t, c, s], [rates]))
@@ -435,7 +437,8 @@ class CompiledSceneScheme(SchemeHooks):
                                              [a - value, ca.SX.eye(n) - w * d_q - g * d_v])
             weighting = inverse_mass_terms(self.model, mapped)      # Newton on M (a - qddot), as the Python stepper
             residual_terms = weighted_residual_terms(residual_terms, *weighting) if weighting else residual_terms
-        iterate = newton_iteration(residual_terms, self.tolerance)
+        iterate = sweep_iteration(self.model, self.actuators, self.period, self.tolerance, self.loops) \
+            if self.tangent == "sweep" else newton_iteration(residual_terms, self.tolerance)     # O(N) / Newton
         y = ca.MX.sym("y", self.state_size)
         u_in, h, p_in, t0, k = ca.MX.sym("u", n_u), ca.MX.sym("h"), ca.MX.sym("p", n_p), ca.MX.sym("t0"), ca.MX.sym("k")
         controller = y[self.status_index + len(STATUS):]
@@ -444,7 +447,7 @@ class CompiledSceneScheme(SchemeHooks):
             lambda z, q_hat_k, v_hat_k, w_k, g_k, fraction: iterate(z, q_hat_k, v_hat_k, w_k, g_k,
                                                                     t0 + (k + fraction) * h, u_in, p_in,
                                                                     controller, fraction * h),
-            self.max_iterations, y[6 * n:6 * n + len(STATUS)])
+            iteration_count(self.tangent, self.max_iterations), y[6 * n:6 * n + len(STATUS)])
         history_out = ca.if_else(failed, ca.MX.nan(6 * n, 1), ca.vertcat(*new))
         out = [history_out, status]
         if self.controller_size:
@@ -496,12 +499,12 @@ def not_converged(compiled: Any, row: np.ndarray, h: float, partial: Any = None,
                   ) -> ConvergenceError:
     """The :class:`ConvergenceError` of a stored state ``row`` whose status says a step did not converge (its step,
     time and residual; ``partial``: the result before it; ``offset``: steps before the run's step count began)."""
-    status = compiled.status_index
-    step = offset + int(row[status])
+    status, tangent = compiled.status_index, getattr(compiled, "tangent", None)
+    step, kind = offset + int(row[status]), "sweep" if tangent == "sweep" else "Newton"
     return ConvergenceError(
         f"generated implicit DT-TMM step {step} (t = {step * h:.6g} s) did not converge: residual max|delta qdd| = "
-        f"{row[status + 1]:.3e} after {compiled.max_iterations} Newton iterations (tolerance "
-        f"{compiled.tolerance:g}); reduce dt", time=step * h, partial_result=partial)
+        f"{row[status + 1]:.3e} after {iteration_count(tangent, compiled.max_iterations)} {kind} iterations "
+        f"(tolerance {compiled.tolerance:g}); reduce dt", time=step * h, partial_result=partial)
 
 
 def reused_or_built(kind: type, compiled: Any, model: Any, scheme: Scheme, store_every: int, **options: Any) -> Any:
@@ -564,14 +567,12 @@ def simulate_scheme_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_fina
     start = _time.perf_counter()
     first = compiled.initial_state(q, v)
     rows = compiled.run(first, h, n_steps)
-    wall = _time.perf_counter() - start
-    every, n = compiled.store_every, model.n_coordinates
+    wall, every, n = _time.perf_counter() - start, compiled.store_every, model.n_coordinates
     steps = np.array([k for k in range(1, n_steps + 1) if k % every == 0 or k == n_steps])[:len(rows)]
     states = np.vstack([first[None], rows])
     t = np.concatenate([[0.0], steps * h])
     label = f"dt-tmm-generated/{type(scheme).__name__}"
     qs, vs = states[:, :n], states[:, n:2 * n]
-
     controller = states[:, compiled.status_index + len(STATUS):]       # loop controller entries (a subclass's)
     extra = {"controller_states": controller} if compiled.controller_size else {}
 
@@ -580,7 +581,6 @@ def simulate_scheme_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_fina
                                 extra={name: value[:k] for name, value in extra.items()})
 
     from .compiled_control import first_loop_failure, loop_state_failure
-
     failed = np.flatnonzero(states[:, 6 * n] > 0.0)
     good = len(states) if not failed.size else int(failed[0])
     held = np.zeros(len(compiled.actuators))   # modal beams' deflection too; a failing interval replayed step by step

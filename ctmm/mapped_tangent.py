@@ -16,9 +16,9 @@ against the Python stepper's transfer-form Newton (one linearised sweep per iter
 generated step is 0.27 of it at 15 coordinates, 1.5 times it at 20 and 10 times at 80 (20.3 against 2.0 ms,
 ``benchmarks/compiled_schemes_default.py``; the 23 ms per Python step at N = 100 recorded earlier were its first
 steps, which trace its sweep once), so :mod:`ctmm.compiled_default` generates planar schemes by default up to 15
-coordinates (30 with loops, whose Python path costs more).  An O(N) generated iteration would solve the Newton
-correction with the transfer form's own tangent sweep (the body relations linearised about the iterate,
-:mod:`ctmm.planar.implicit`) instead of forming this tangent; not done yet.
+coordinates (30 with loops, whose Python path costs more).  Planar models with linear hinge laws and no modal bodies
+or loops iterate from 8 coordinates with one implicit articulated sweep per iteration instead
+(:mod:`ctmm.compiled_sweep_newton`, O(N)); the tangents here serve the others.
 """
 from __future__ import annotations
 
@@ -107,20 +107,30 @@ def residual_terms(rates: Any) -> Any:
     return ca.Function("residual", [a, q_hat, v_hat, w, g, t, u, p, c, s], [a - value, tangent])
 
 
-def tangent_construction(owner: str, tangent: str | None, coordinates: int) -> str:
-    """``"mapped"`` or ``"symbolic"``: how ``owner``'s generated Newton step forms its tangent; ``None`` chooses by
-    size (:data:`MAPPED_MIN_COORDINATES`).
+def tangent_construction(owner: str, tangent: str | None, coordinates: int, sweep: str | None = None) -> str:
+    """``"mapped"``, ``"symbolic"`` or ``"sweep"``: how ``owner``'s generated Newton step forms its tangent.
+
+    ``sweep``: ``None`` where the implicit-sweep iteration (:mod:`ctmm.compiled_sweep_newton`, planar schemes) is
+    no choice, ``""`` where it applies, else why it does not (:func:`ctmm.compiled_sweep_newton.sweep_refusal`).
+    ``tangent=None`` chooses by size: from :data:`MAPPED_MIN_COORDINATES` the sweep where it applies (O(N) per
+    iteration) or else the mapped tangent; below it the symbolic Jacobian.
 
     Raises
     ------
     ModelError
-        ``tangent`` not ``"mapped"``, ``"symbolic"`` or ``None``.
+        ``tangent`` not one of those or ``None``; ``"sweep"`` where it does not apply (naming why).
     """
     if tangent is None:
-        return "mapped" if coordinates >= MAPPED_MIN_COORDINATES else "symbolic"
-    if tangent not in ("mapped", "symbolic"):
+        if coordinates < MAPPED_MIN_COORDINATES:
+            return "symbolic"
+        return "sweep" if sweep == "" else "mapped"
+    if tangent == "sweep" and sweep:
+        raise ModelError(f"{owner}: tangent='sweep' is not for a model with {sweep}; use tangent='mapped' or "
+                         "'symbolic'")
+    if tangent not in ("mapped", "symbolic") + (() if sweep is None else ("sweep",)):
         raise ModelError(f"{owner}: tangent must be 'mapped' (forward derivatives of the sweep, code O(N)), "
-                         f"'symbolic' (symbolic Jacobian) or None (by size), got {tangent!r}")
+                         + ("" if sweep is None else "'sweep' (one implicit articulated sweep per iteration, O(N)), ")
+                         + f"'symbolic' (symbolic Jacobian) or None (by size), got {tangent!r}")
     return tangent
 
 

@@ -32,7 +32,8 @@ __all__ = ["fold_segments"]
 
 
 def fold_segments(bodies: Sequence[BodyTerms], joints: Sequence[JointTerms], outboard: Sequence[str],
-                  symbols: Sequence[Any], columns: Sequence[Any], outputs: Callable[[Articulated], Any]) -> Any:
+                  symbols: Sequence[Any], columns: Sequence[Any], outputs: Callable[[Articulated], Any],
+                  kappa: Sequence[Any] | None = None) -> Any:
     """The outputs of every segment of a chain of equal segments, swept as two folds.
 
     Parameters
@@ -52,6 +53,9 @@ def fold_segments(bodies: Sequence[BodyTerms], joints: Sequence[JointTerms], out
     outputs : callable
         ``outputs(solution) -> SX column`` of one segment from its sweep (:class:`~ctmm.articulated.Articulated`
         over ``[virtual parent, *bodies, virtual child]``: the segment's bodies are entries ``1..period``).
+    kappa : sequence, optional
+        Joint tangent ``(k, k)`` of each joint of the segment (on ``symbols``; ``None`` entries and default: 0),
+        added to its pivot as in :func:`~ctmm.articulated.articulated_sweep` (an implicit hinge law).
 
     Returns
     -------
@@ -82,7 +86,8 @@ def fold_segments(bodies: Sequence[BodyTerms], joints: Sequence[JointTerms], out
     tree = Tree(tuple(range(-1, period + 1)), (None, "in") + tuple(outboard), dimension=d)
     weld = JointTerms(S=ca.DM.zeros(d, 0))
     all_bodies, all_joints = [virtual_parent, *bodies, virtual_child], [weld, *joints, weld]
-    inward = articulated_inward(CASADI, tree, all_bodies, all_joints)
+    inward = articulated_inward(CASADI, tree, all_bodies, all_joints,
+                                None if kappa is None else [None, *kappa, None])
     reduced = ca.vertcat(ca.reshape(inward.inertia[0], d * d, 1), inward.bias[0])
     # the outward pass on stand-ins of the formed terms it reads (the inward results, the points' Kin and
     # c, the joints' S, c and tau): the eliminate fold hands their values to the accelerate fold

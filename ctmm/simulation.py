@@ -176,8 +176,9 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         models).
         ``False``: the numpy path always.  Default (``None``): the generated path where it pays and a C compiler
         is present -- RK4 of chains, planar and spatial models (with their loops, inputs and references) and the
-        DT-TMM schemes of chains, of planar models up to 15 coordinates (30 with loops) and of spatial models up to
-        10 velocities (``ctmm.compiled_default.SCHEME_MAXIMUM_COORDINATES``, ...), for runs of at least
+        DT-TMM schemes of chains, of planar models up to 300 coordinates where the generated step iterates with the
+        implicit sweep (linear hinge laws, no modal bodies, no loops), else up to 15 coordinates (30 with loops),
+        and of spatial models up to 10 velocities (``ctmm.compiled_default.SCHEME_MAXIMUM_COORDINATES``, ...), for runs of at least
         ``ctmm.compiled_default.MINIMUM_STEPS`` (5000) steps and no co-simulated controllers -- falling back to
         numpy for what it refuses (the reason in ``result.info["compiled"]``); else numpy
         (:mod:`ctmm.compiled_default`).

@@ -19,7 +19,8 @@ from ctmm.control import ControlledModel, Feedback
 from ctmm.compiled_default import MINIMUM_STEPS, default_refusal
 from ctmm.elements import Fixed, Free, Inerter, Mass, SpringDamper
 from ctmm.errors import ModelError
-from ctmm.planar import Pinned, PlanarModel, RigidBody, SmoothHinge
+from ctmm.nonlinear_laws import CubicSpring
+from ctmm.planar import NonlinearHinge, Pinned, PlanarModel, RigidBody, SmoothHinge
 
 try:
     find_compiler()
@@ -112,7 +113,13 @@ def test_default_refusal_names_why_numpy_runs(monkeypatch):
     assert "short run" in default_refusal(model, "rk4", **{**long_run, "t_final": 0.1})
     assert "no generated form" in default_refusal(model, "DOP853", **long_run)
     assert default_refusal(model, "newmark", **long_run) is None
-    assert "a DT-TMM scheme of 16 coordinates (> 15" in default_refusal(pendulum(16), "houbolt", **long_run)
+    assert default_refusal(pendulum(300), "houbolt", **long_run) is None     # the O(N) sweep iteration applies
+    assert "a DT-TMM scheme of 301 coordinates (> 300" in default_refusal(pendulum(301), "houbolt", **long_run)
+    links = [RigidBody.uniform_link(f"link{i}", mass=1.0, length=1.0) for i in range(16)]
+    hinges = [NonlinearHinge("cubic", moment_law=CubicSpring(1.0, 2.0))] + [SmoothHinge(f"h{i}") for i in range(2, 16)]
+    elements = [Pinned("base"), links[0], *[e for pair in zip(hinges, links[1:]) for e in pair]]
+    stiff = PlanarModel.chain("cubic", elements, gravity=(0.0, -G))     # a nonlinear law: the n x n tangent, <= 15
+    assert "a DT-TMM scheme of 16 coordinates (> 15" in default_refusal(stiff, "houbolt", **long_run)
     pd = lambda n: ControlledModel(pendulum(n), [Feedback("pd", [("link0.theta", 5.0)], "base.torque", gain=1.0)])
     assert default_refusal(pd(30), "newmark", **long_run) is None          # the numpy loops cost more there
     assert "31 coordinates with loops (> 30" in default_refusal(pd(31), "newmark", **long_run)
@@ -146,8 +153,12 @@ def test_a_planar_scheme_is_generated_by_default_and_equals_numpy(monkeypatch, m
     assert "compiled" not in reference.info
     for name in ("link0.theta", "link2.theta", "link1.theta_dot"):
         np.testing.assert_allclose(result[name], reference[name], rtol=0, atol=1e-12)
-    big = ctmm.simulate(pendulum(16), 0.1, dt, method=method)       # beyond the measured crossover: numpy
-    assert big.info["compiled"].startswith("numpy") and "16 coordinates (> 15" in big.info["compiled"]
+    start = {"link0.theta": 0.8, "link9.theta": -0.4, "link15.theta": 1.0}
+    big = ctmm.simulate(pendulum(16), t_final, dt, method=method, x0=start)  # the O(N) sweep iteration: generated
+    assert big.info["compiled"].startswith("generated")
+    numpy_big = ctmm.simulate(pendulum(16), t_final, dt, method=method, x0=start, compiled=False)
+    for name in ("link0.theta", "link15.theta", "link9.theta_dot"):
+        np.testing.assert_allclose(big[name], numpy_big[name], rtol=0, atol=1e-12)
 
 
 @needs_compiler

@@ -69,7 +69,7 @@ def test_columns_are_the_derivatives_of_the_numpy_sweep():
 def test_a_40_body_chain_folded_with_the_mapped_tangent_equals_the_python_stepper():
     model = chain(40)
     q0, v0 = _start(model.n_coordinates)
-    compiled = CompiledSceneScheme(model, "newmark")
+    compiled = CompiledSceneScheme(model, "newmark", tangent="mapped")
     assert compiled.tangent == "mapped" and compiled.period > 0        # the construction this test is for
     generated = simulate_scheme_generated(model, q0, v0, t_final=0.03, dt=1e-3, compiled=compiled)
     python = simulate_implicit(model, q0, v0, t_final=0.03, dt=1e-3, scheme="newmark")
@@ -78,12 +78,13 @@ def test_a_40_body_chain_folded_with_the_mapped_tangent_equals_the_python_steppe
     assert generated.extra["newton_iterations"] <= 4 * 30
 
 
+@pytest.mark.parametrize("tangent", ["mapped", "sweep"])       # sweep: ctmm.compiled_sweep_newton, modal block implicit
 @pytest.mark.parametrize("scheme", ["newmark", "houbolt", "wilson_theta"])
-def test_the_mapped_tangent_on_a_modal_beam_equals_the_python_stepper(scheme):
+def test_the_mapped_tangent_on_a_modal_beam_equals_the_python_stepper(scheme, tangent):
     model = hub_beam()
     q0, v0 = np.zeros(model.n_coordinates), np.zeros(model.n_coordinates)
     q0[:2], v0[0] = (0.3, 0.02), 2.0
-    compiled = CompiledSceneScheme(model, scheme, tangent="mapped")
+    compiled = CompiledSceneScheme(model, scheme, tangent=tangent)
     generated = simulate_scheme_generated(model, q0, v0, t_final=0.1, dt=2e-3, scheme=scheme, compiled=compiled)
     python = simulate_implicit(model, q0, v0, t_final=0.1, dt=2e-3, scheme=scheme)
     assert np.max(np.abs(generated.q - python.q)) <= 1e-10
@@ -135,6 +136,9 @@ def test_mapped_and_symbolic_libraries_give_the_same_run():
 
 def test_the_construction_is_chosen_by_size_and_bad_choices_are_refused():
     assert tangent_construction("x", None, MAPPED_MIN_COORDINATES) == "mapped"
+    assert tangent_construction("x", None, MAPPED_MIN_COORDINATES, "") == "sweep"       # where it applies
+    assert tangent_construction("x", None, MAPPED_MIN_COORDINATES, "modal bodies") == "mapped"
+    assert tangent_construction("x", None, MAPPED_MIN_COORDINATES - 1, "") == "symbolic"
     assert tangent_construction("x", None, MAPPED_MIN_COORDINATES - 1) == "symbolic"
     assert SCHEME_FOLD_MIN_BODIES >= MAPPED_MIN_COORDINATES
     with pytest.raises(ModelError, match="tangent must be 'mapped'.*got 'jacobian'"):
