@@ -37,10 +37,35 @@ def _repository_packages() -> set[str]:
     return found
 
 
+def _data_folders() -> set[str]:
+    """Every folder holding a file that ``[tool.setuptools.package-data]`` installs, as an import name (setuptools
+    treats such a folder as a namespace package and warns "Package would be ignored" unless it is listed)."""
+    configuration = _configuration()
+    found = set()
+    for package, patterns in configuration["package-data"].items():
+        base = ROOT / configuration["package-dir"][package] if package in configuration["package-dir"] else \
+            ROOT / configuration["package-dir"]["ctmm"] / Path(*package.split(".")[1:])
+        for pattern in patterns:
+            for path in base.glob(pattern):
+                relative = path.parent.relative_to(base)
+                if relative.parts:
+                    found.add(".".join((package, *relative.parts)))
+    return found
+
+
 def test_every_subpackage_is_listed_in_pyproject():
     listed = set(_configuration()["packages"])
-    assert sorted(_repository_packages() - listed) == []
-    assert sorted(listed - _repository_packages()) == []
+    expected = _repository_packages() | _data_folders()
+    assert sorted(expected - listed) == []
+    assert sorted(listed - expected) == []
+
+
+def test_every_installed_data_folder_is_listed_so_the_build_does_not_warn():
+    """The data folders (FMU sources, scene files) are listed as packages; the wheel build warned 12 times
+    ("Python recognizes 'ctmm.controllers.fmu.pd_controller' as an importable package ... absent from packages")."""
+    folders = _data_folders()
+    assert {"ctmm.scenarios.files", "ctmm.controllers.fmu_common", "ctmm.controllers.fmu.pd_controller.sources"} <= folders
+    assert sorted(folders - set(_configuration()["packages"])) == []
 
 
 @pytest.mark.skipif(not (ROOT / ".git").exists(), reason="builds the wheel from the repository checkout")
