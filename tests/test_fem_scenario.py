@@ -4,9 +4,8 @@ from __future__ import annotations
 import json
 
 
-def test_fem_chain_scenario_quick(tmp_path):
-    from ctmm.scenarios import fem_chain
-    summary = fem_chain.run(tmp_path, quick=True)
+def test_fem_chain_scenario_quick(quick_scenario):
+    summary, tmp_path = quick_scenario("fem_chain")
     json.dumps(summary)
     assert (tmp_path / "fem_chain.png").stat().st_size > 1000
     for figure in summary["accuracy"]:

@@ -42,9 +42,8 @@ def test_mape_ignores_samples_near_zero_crossings():
     assert mape(shifted, y_ref) < 0.5                        # samples near zero are excluded
 
 
-def test_finite_segments_scenario_quick(tmp_path):
-    module = importlib.import_module("ctmm.scenarios.finite_segments")
-    summary = module.run(tmp_path, quick=True)
+def test_finite_segments_scenario_quick(quick_scenario):
+    summary, tmp_path = quick_scenario("finite_segments")
     json.dumps(summary)
     assert (tmp_path / "finite_segments.png").stat().st_size > 1000
     assert all(abs(o - 2.0) < 0.05 for o in summary["observed_order_2EI_l"])

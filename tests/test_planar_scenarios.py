@@ -7,9 +7,8 @@ import numpy as np
 import pytest
 
 
-def test_pendulum_chain_scenario_quick(tmp_path):
-    from ctmm.scenarios import pendulum_chain
-    summary = pendulum_chain.run(tmp_path, quick=True)
+def test_pendulum_chain_scenario_quick(quick_scenario):
+    summary, tmp_path = quick_scenario("pendulum_chain")
     json.dumps(summary)
     assert (tmp_path / "pendulum_chain.png").stat().st_size > 1000
     for key in ("accuracy", "wall_time_s", "reference_wall_time_s", "energy_drift"):

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from ctmm.reference.rotary_base_kane import RotaryBaseBeam
-from ctmm.scenarios import rotary_base_segments
 
 
 def test_kane_reference_steady_centrifugal_stretch_equals_the_rotating_rod_solution():
@@ -29,8 +28,8 @@ def test_kane_reference_steady_centrifugal_stretch_equals_the_rotating_rod_solut
     assert np.allclose(z[6:], 0.0)
 
 
-def test_rotary_base_segments_quick_converges_to_kane(tmp_path):
-    summary = rotary_base_segments.run(tmp_path, quick=True)
+def test_rotary_base_segments_quick_converges_to_kane(quick_scenario):
+    summary, tmp_path = quick_scenario("rotary_base_segments")
     json.dumps(summary)
     assert (tmp_path / "rotary_base_segments.png").stat().st_size > 1000
     (figure,) = summary["accuracy"]

@@ -7,8 +7,6 @@ import json
 import numpy as np
 import pytest
 
-from ctmm import scenario
-
 
 @pytest.mark.parametrize("name", ["spatial_chain", "branch_system"])
 def test_spatial_scenario_quick_meets_its_bounds(name, quick_scenario):
@@ -66,11 +64,11 @@ def test_robot_arm_quick_meets_its_bounds(quick_scenario):
 
 
 @pytest.mark.parametrize("name", ["spatial_hub_beam", "spatial_hub_beam_tip_body"])
-def test_spatial_hub_beam_quick_meets_its_bounds(name, tmp_path):
+def test_spatial_hub_beam_quick_meets_its_bounds(name, quick_scenario):
     """Hub rate, longitudinal (axial mode) and transverse tip deformation of the SpatialBeam run against
     the independent assumed-modes Lagrange model with the axial mode (0.1 % of peak), the beam really
     bending in the plane of rotation and stretching, nothing out of that plane."""
-    summary = scenario.run_scenario(name, tmp_path, quick=True)
+    summary, tmp_path = quick_scenario(name)
     data = json.loads((tmp_path / f"{name}.json").read_text())
     assert data["passed"] and [f["unit"] for f in data["accuracy"]] == ["% of peak"] * 3
     for figure in data["accuracy"]:
@@ -82,12 +80,12 @@ def test_spatial_hub_beam_quick_meets_its_bounds(name, tmp_path):
     assert data["wall_time_s"] > 0 and data["reference_wall_time_s"] > 0
 
 
-def test_spatial_spin_up_quick_is_bounded_with_stiffening_and_diverges_without(tmp_path):
+def test_spatial_spin_up_quick_is_bounded_with_stiffening_and_diverges_without(quick_scenario):
     """In-plane and out-of-plane tip deflection of the stiffened spin-up under out-of-plane gravity
     against the independent Lagrange model (0.1 % of peak); without stiffening the in-plane
     deflection diverges once the spin passes omega_1 (the contrast, asserted)."""
     name = "spatial_spin_up"
-    summary = scenario.run_scenario(name, tmp_path, quick=True)
+    summary, tmp_path = quick_scenario(name)
     data = json.loads((tmp_path / f"{name}.json").read_text())
     assert data["passed"] and len(data["accuracy"]) == 2
     for figure in data["accuracy"]:
