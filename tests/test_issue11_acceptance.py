@@ -529,13 +529,14 @@ def lti_closed_loop_exact(lti, delay: float, t_final: float):
 
 @pytest.mark.parametrize("delay", [0.0, 0.0123])
 def test_lti_controller_run_converges_at_second_order_to_the_continuous_loop(delay):
-    """Tustin + Newmark (both second order, no lag) against the continuous closed loop."""
+    """Tustin + Newmark (both second order, no lag) against the continuous closed loop (0.25 s: about 20 delays
+    and 50 time constants of the controller's pole; measured ratios 3.9989 and 3.9990, errors 2.4e-6, 2.5e-6)."""
     lti = control.tf([3.0, 300.0], [1 / 200.0, 1.0])
-    exact = lti_closed_loop_exact(lti, delay, 0.5)
+    exact = lti_closed_loop_exact(lti, delay, 0.25)
     system = ControlledChain(seed_plant(), [Feedback("L", "m6.x", "m2", gain=lti, delay=delay)])
     errors = []
     for dt in (1e-3, 5e-4):
-        run = simulate_controlled(system, 0.5, dt, x0={"m6": 0.01})
+        run = simulate_controlled(system, 0.25, dt, x0={"m6": 0.01})
         x = np.column_stack([run[f"{m}.x"] for m in ("m2", "m4", "m6")])
         errors.append(np.max(np.abs(x - exact(run.time))))
     assert errors[1] < 1e-3 * 0.01 and 3.8 < errors[0] / errors[1] < 4.2, errors   # peak 0.01 m
