@@ -64,30 +64,60 @@ def matrices(masses, stiffness, damping, *, fixed_end: bool):
 
 
 def loop_transfer(M, C, K, b, c_terms, controller):
-    """``L0(s)`` vectorised over ``s``: tridiagonal (Thomas) solves of ``D0(s) x = b``."""
+    """``L0(s)`` vectorised over ``s``: tridiagonal (Thomas) solves of ``D0(s) x = b``.
+
+    The arrays are laid out (mass, frequency) so that every elimination step works on contiguous rows,
+    in blocks of frequencies small enough to stay in cache.
+    """
     dm, dc, dk = np.diag(M), np.diag(C), np.diag(K)
     oc, ok = np.diag(C, 1), np.diag(K, 1)
     n = len(dm)
 
     def L0(s):
         s = np.atleast_1d(np.asarray(s, complex))
-        d = s[:, None] ** 2 * dm + s[:, None] * dc + dk
-        off = s[:, None] * oc + ok
-        r = np.tile(b.astype(complex), (s.size, 1))
+        if s.size > 2048:                     # blocks of frequencies that stay in cache
+            return np.concatenate([L0(block) for block in np.array_split(s, -(-s.size // 2048))])
+        if s.size == 1:                       # scalar solve (Brent refinement) in plain complex arithmetic
+            return np.array([scalar(complex(s[0]))]) * controller(s)
+        d = dm[:, None] * s ** 2 + dc[:, None] * s + dk[:, None]
+        off = oc[:, None] * s + ok[:, None]
+        r = np.repeat(b.astype(complex)[:, None], s.size, axis=1)
         for i in range(1, n):
-            f = off[:, i - 1] / d[:, i - 1]
-            d[:, i] -= f * off[:, i - 1]
-            r[:, i] -= f * r[:, i - 1]
+            f = off[i - 1] / d[i - 1]
+            d[i] -= f * off[i - 1]
+            r[i] -= f * r[i - 1]
         x = np.empty_like(r)
-        x[:, -1] = r[:, -1] / d[:, -1]
+        x[-1] = r[-1] / d[-1]
         for i in range(n - 2, -1, -1):
-            x[:, i] = (r[:, i] - off[:, i] * x[:, i + 1]) / d[:, i]
-        return sum(s ** p * (x @ cv) for p, cv in c_terms) * controller(s)
+            x[i] = (r[i] - off[i] * x[i + 1]) / d[i]
+        return sum(s ** p * (cv @ x) for p, cv in c_terms) * controller(s)
+
+    lists = [v.tolist() for v in (dm, dc, dk, oc, ok, b)]
+
+    def scalar(s: complex) -> complex:
+        m, c, k, c1, k1, r = lists
+        d = [m[i] * s * s + c[i] * s + k[i] for i in range(n)]
+        off = [c1[i] * s + k1[i] for i in range(n - 1)]
+        r = [complex(v) for v in r]
+        for i in range(1, n):
+            f = off[i - 1] / d[i - 1]
+            d[i] -= f * off[i - 1]
+            r[i] -= f * r[i - 1]
+        x = [0j] * n
+        x[-1] = r[-1] / d[-1]
+        for i in range(n - 2, -1, -1):
+            x[i] = (r[i] - off[i] * x[i + 1]) / d[i]
+        return sum(s ** p * sum(w * xi for w, xi in zip(cv.tolist(), x)) for p, cv in c_terms)
     return L0
 
 
 def plant_poles(M, C, K):
+    """Roots of ``det(s^2 M + s C + K) = 0``; modal (``eigh``) when the damping is ``C = alpha K``."""
     n = len(M)
+    alpha = C[0, 0] / K[0, 0]
+    if np.count_nonzero(M - np.diag(np.diag(M))) == 0 and np.allclose(C, alpha * K, rtol=1e-13, atol=0.0):
+        w2 = sla.eigh(K, M, eigvals_only=True)                # s^2 + alpha w^2 s + w^2 = 0 per mode
+        return np.concatenate([np.roots([1.0, alpha * v, v]) for v in w2]).astype(complex)
     left = np.block([[np.zeros((n, n)), np.eye(n)], [-K, -C]])
     right = np.block([[np.eye(n), np.zeros((n, n))], [np.zeros((n, n)), M]])
     return sla.eigvals(left, right)
@@ -499,13 +529,14 @@ def lti_closed_loop_exact(lti, delay: float, t_final: float):
 
 @pytest.mark.parametrize("delay", [0.0, 0.0123])
 def test_lti_controller_run_converges_at_second_order_to_the_continuous_loop(delay):
-    """Tustin + Newmark (both second order, no lag) against the continuous closed loop."""
+    """Tustin + Newmark (both second order, no lag) against the continuous closed loop (0.25 s: about 20 delays
+    and 50 time constants of the controller's pole; measured ratios 3.9989 and 3.9990, errors 2.4e-6, 2.5e-6)."""
     lti = control.tf([3.0, 300.0], [1 / 200.0, 1.0])
-    exact = lti_closed_loop_exact(lti, delay, 0.5)
+    exact = lti_closed_loop_exact(lti, delay, 0.25)
     system = ControlledChain(seed_plant(), [Feedback("L", "m6.x", "m2", gain=lti, delay=delay)])
     errors = []
     for dt in (1e-3, 5e-4):
-        run = simulate_controlled(system, 0.5, dt, x0={"m6": 0.01})
+        run = simulate_controlled(system, 0.25, dt, x0={"m6": 0.01})
         x = np.column_stack([run[f"{m}.x"] for m in ("m2", "m4", "m6")])
         errors.append(np.max(np.abs(x - exact(run.time))))
     assert errors[1] < 1e-3 * 0.01 and 3.8 < errors[0] / errors[1] < 4.2, errors   # peak 0.01 m

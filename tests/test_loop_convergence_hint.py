@@ -40,6 +40,13 @@ def has_compiler() -> bool:
     return True
 
 
+@pytest.fixture(scope="module")
+def kernel_cache(tmp_path_factory):
+    """One kernel folder for the module (a cold cache is not the point here): the positive-feedback kernel
+    is built once for both tests that run it generated."""
+    return tmp_path_factory.mktemp("kernels")
+
+
 def test_the_positive_feedback_is_unstable_by_the_root_count():
     assert int(ctmm.stability.unstable_root_count(controlled(1.0), loop="pd0")[0]) == 0
     assert int(ctmm.stability.unstable_root_count(controlled(-1.0), loop="pd0")[0]) > 0
@@ -47,8 +54,8 @@ def test_the_positive_feedback_is_unstable_by_the_root_count():
 
 @pytest.mark.parametrize("compiled", [False, pytest.param(True, marks=pytest.mark.skipif(
     not has_compiler(), reason="no C compiler"))])
-def test_a_newton_failure_with_loops_names_them(compiled, tmp_path, monkeypatch):
-    monkeypatch.setenv("CTMM_CACHE", str(tmp_path))
+def test_a_newton_failure_with_loops_names_them(compiled, kernel_cache, monkeypatch):
+    monkeypatch.setenv("CTMM_CACHE", str(kernel_cache))
     stable = ctmm.simulate(controlled(1.0), 0.6, DT, method="newmark", compiled=compiled,
                            x0={"link0.theta": 0.1})
     assert len(stable.time) == 601 and np.all(np.abs(stable["link0.theta"]) < np.pi / 2)    # the right sign holds it
@@ -61,10 +68,10 @@ def test_a_newton_failure_with_loops_names_them(compiled, tmp_path, monkeypatch)
     assert np.max(np.abs(partial["link0.theta"])) > 1.0                   # it grew before the iteration failed
 
 
-def test_both_paths_agree_to_round_off_up_to_the_first_failure(tmp_path, monkeypatch):
+def test_both_paths_agree_to_round_off_up_to_the_first_failure(kernel_cache, monkeypatch):
     if not has_compiler():
         pytest.skip("no C compiler")
-    monkeypatch.setenv("CTMM_CACHE", str(tmp_path))
+    monkeypatch.setenv("CTMM_CACHE", str(kernel_cache))
     partials = []
     for compiled in (False, True):
         with pytest.raises(ctmm.ConvergenceError, match="may be unstable") as failure:

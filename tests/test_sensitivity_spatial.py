@@ -198,8 +198,10 @@ def test_arm_response_and_abscissa_match_differences_with_a_moving_sensor():
 
 def test_spatial_histories_match_differences_of_the_simulation():
     # the arm alone (a point sensor as output) and the elastic-hinge body with a delayed PD (loop numbers)
+    # (the derivative of the same discrete RK4 run is compared: 40 steps of 5 ms for the arm, measured <= 1e-11;
+    # 30 steps of 2 ms for the hinge, whose 4 ms delay is two steps)
     cases = [(arm(), ARM_NAMES[1:4], {"shoulder.angle": 0.4, "elbow.angle1": -0.3}, {},
-              ["lower.tip.z", "elbow.q2_rate"], 0.2, 2e-3)]
+              ["lower.tip.z", "elbow.q2_rate"], 0.2, 5e-3)]
     q0, v0 = hinge.initial_state()
     plant = hinge.model()
     cases.append((with_feedback(plant, [hinge.loop(0.004)]), ["body.mass", "gravity.z", "yaw_pd.body.angle_z",
