@@ -7,20 +7,23 @@ its numbers (:func:`ctmm.model_description.describe` with ``numbers=False``) and
 :func:`~ctmm.compiled_parameters.structure_key` (the numbers the code keeps as constants), so models that differ
 only in entries of ``p`` share one library; a hit is then certified (:func:`certified_hit`) against the numpy
 sweep of the model, independent of the generated code, else the scene is built and keyed on its functions.
+:class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme` (a planar DT-TMM scheme without loops) keys its library the
+same way on :func:`scheme_description`: the model without its numbers, and the scheme's options with theirs.
 """
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
 from .compiled_parameters import structure_key
 from .control.controlled_model import ControlledModel
 from .errors import ModelError, SimulationError
+from .generated_loop import TimeLoop, compiled_time_loop
 from .planar.body_forms import PlanarScene
 from .planar.model import PlanarModel
 
-__all__ = ["certified_hit", "scene_description"]
+__all__ = ["certified_hit", "described_time_loop", "scene_description", "scheme_description"]
 
 
 def scene_description(system: PlanarModel | ControlledModel, numbers: str, period: int,
@@ -60,6 +63,69 @@ def scene_description(system: PlanarModel | ControlledModel, numbers: str, perio
         text = describe((system, numbers, period, loop_options) + ((tuple(stations),) if stations else ()))
         parts = []
     return None if text is None else [*parts, ("planar", text)]
+
+
+def scheme_description(model: PlanarModel, options: tuple) -> list[tuple[str, bytes]] | None:
+    """The labelled description a planar scheme's library (numbers as inputs ``p``, no loops) is keyed on before
+    anything is built, or ``None`` (key on the built functions).
+
+    Parameters
+    ----------
+    model : PlanarModel
+        Described without its numbers (``describe(..., numbers=False)``: every float by its zero pattern), with its
+        :func:`structure_key` (the numbers the code keeps as constants); its other numbers are entries of ``p``,
+        and a hit is certified against the numpy sweep (:func:`certified_hit`).
+    options : tuple
+        Everything else the builder reads (scheme, Newton tangent and fold, tolerance, iterations, actuators),
+        described with every number (a scheme's coefficients and the tolerance are constants of the code).
+
+    Returns
+    -------
+    list of (str, bytes) or None
+    """
+    from .model_description import describe
+
+    structure, settings = describe(model, numbers=False), describe(("planar scheme", *options))
+    if structure is None or settings is None:
+        return None
+    return [("planar structure", structure_key(model).encode()), ("planar scheme model", structure),
+            ("planar scheme options", settings)]
+
+
+def described_time_loop(description: list[tuple[str, bytes]] | None, build: Callable[[], tuple[Any, list]],
+                        certify: Callable[[tuple], bool] | None, store_every: int, rows: int, name: str,
+                        **options: Any) -> TimeLoop:
+    """The compiled time loop (:func:`ctmm.generated_loop.compiled_time_loop`) keyed on ``description`` before
+    anything is built, or on the built functions: when ``description`` is ``None``, or when a library found by it
+    fails ``certify`` (a description without numbers does not determine them: the hit is checked, never trusted).
+
+    Parameters
+    ----------
+    description : list of (str, bytes) or None
+        :func:`scene_description`, :func:`scheme_description`.
+    build : callable
+        ``build() -> (step, extra)`` on symbols; called only when no library is found (or the found one fails).
+    certify : callable or None
+        ``certify(extra) -> bool`` on the loaded ``extra`` functions of a library found by ``description`` (not on
+        one just built from it); ``None``: ``description`` is complete, a hit is taken.
+    store_every, rows, name, **options
+        Of :func:`ctmm.generated_loop.compiled_time_loop`.
+
+    Returns
+    -------
+    TimeLoop
+    """
+    built: list = []
+    if description is not None:
+        def recorded() -> tuple[Any, list]:
+            built.append(True)
+            return build()
+
+        loop = compiled_time_loop(recorded, store_every, rows, name, description=description, **options)
+        if built or certify is None or certify(loop.extra):
+            return loop
+    step, extra = build()
+    return compiled_time_loop(step, store_every, rows, name, extra=extra, **options)
 
 
 def certified_hit(model: PlanarModel, acceleration: Any, parameters: np.ndarray) -> bool:

@@ -1,0 +1,97 @@
+"""A cached compiled call builds no expression (issue 13: the cost of a cached ``compiled=True`` call).
+
+Generated kernels keyed on the model's description before anything is built (:mod:`ctmm.compiled_scene_key`,
+:func:`ctmm.model_description.describe`): a call whose library is cached replaces the symbolic builders by functions
+that raise and still runs; the cache folder's entries (counted on disk) show hits and misses (a changed structure,
+option or constant of the code misses, a changed number that is an input of the code hits); every run is checked
+against an independent stepper of its own model (the Python implicit DT-TMM stepper
+:func:`ctmm.planar.implicit.simulate_implicit`, which shares no generated code), so a wrong hit cannot pass.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ctmm import compiled_scene_key
+from ctmm.planar import ElasticHinge, Fixed, PlanarModel, RigidBody, simulate_implicit
+from ctmm.schemes import Newmark
+from test_planar_description_key import libraries
+
+casadi = pytest.importorskip("casadi")
+compiled_scene_schemes = pytest.importorskip("ctmm.compiled_scene_schemes")
+simulate_scheme_generated = compiled_scene_schemes.simulate_scheme_generated
+
+START = (np.array([0.3, -0.2]), np.array([0.5, -0.4]))
+T_FINAL, DT = 0.1, 0.01
+
+
+def pendulum(mass: float = 1.0, stiffness: float = 2.0, angle: float = 0.2, rest: float = 0.1) -> PlanarModel:
+    """Two links on elastic hinges; ``angle``: the ground's angle (a constant of the code), the rest of the numbers
+    are entries of ``p``."""
+    return PlanarModel.chain("pendulum", [
+        Fixed("ground", angle=angle), ElasticHinge("base", stiffness=1.5, rest_angle=0.2),
+        RigidBody.uniform_link("a", mass=mass, length=0.8),
+        ElasticHinge("h", stiffness=stiffness, rest_angle=rest),
+        RigidBody("b", mass=0.5 * mass, inertia=0.02, center_of_mass=(0.2, 0.01), outboard=(0.4, 0.0))],
+        gravity=(0.0, -9.81))
+
+
+def forbid_building(monkeypatch) -> None:
+    """The planar scheme's symbolic builders raise (a cached call must not reach them)."""
+    def refuse(*_args, **_kwargs):
+        raise AssertionError("symbols were built although the library is cached")
+
+    for name in ("symbolic_accelerations_with_inputs", "folded_accelerations_with_inputs"):
+        monkeypatch.setattr(compiled_scene_schemes, name, refuse)
+
+
+def run(model: PlanarModel, folder, scheme="newmark", **options):
+    return simulate_scheme_generated(model, *START, t_final=T_FINAL, dt=DT, scheme=scheme, cache_dir=folder, **options)
+
+
+def assert_python_stepper(generated, model: PlanarModel, scheme="newmark", **options) -> None:
+    """The generated run equals the Python implicit stepper of ``model`` (independent of the library) to 1e-10."""
+    python = simulate_implicit(model, *START, t_final=T_FINAL, dt=DT, scheme=scheme, **options)
+    assert np.array_equal(generated.t, python.t)
+    assert np.max(np.abs(generated.q - python.q)) <= 1e-10
+    assert np.max(np.abs(generated.qdot - python.qdot)) <= 1e-10
+
+
+def test_a_cached_planar_scheme_call_builds_nothing_and_gives_the_same_numbers(tmp_path, monkeypatch) -> None:
+    first = run(pendulum(), tmp_path)
+    assert len(libraries(tmp_path)) == 1
+    assert_python_stepper(first, pendulum())
+    with monkeypatch.context() as patch:
+        forbid_building(patch)
+        again = run(pendulum(), tmp_path)
+        assert np.array_equal(again.q, first.q) and np.array_equal(again.qdot, first.qdot)
+        for other in (pendulum(mass=1.7, stiffness=5.0), pendulum(rest=0.3)):    # entries of p: the same library
+            assert_python_stepper(run(other, tmp_path), other)
+    assert len(libraries(tmp_path)) == 1
+
+
+def test_a_changed_constant_or_option_of_a_planar_scheme_misses(tmp_path, monkeypatch) -> None:
+    run(pendulum(), tmp_path)
+    changes = [(pendulum(angle=0.4), "newmark", {}),             # a constant of the code
+               (pendulum(rest=0.0), "newmark", {}),              # a zero is a constant too
+               (pendulum(), Newmark(beta=0.3, gamma=0.6), {}),   # the scheme's coefficients
+               (pendulum(), "newmark", {"tolerance": 1e-9}),     # a Newton option
+               (pendulum(), "houbolt", {})]                      # another scheme
+    for count, (model, scheme, options) in enumerate(changes, start=2):
+        with monkeypatch.context() as patch, pytest.raises(AssertionError, match="symbols were built"):
+            forbid_building(patch)
+            run(model, tmp_path, scheme, **options)
+        generated = run(model, tmp_path, scheme, **options)
+        assert len(libraries(tmp_path)) == count
+        assert_python_stepper(generated, model, scheme, **options)
+
+
+def test_a_planar_scheme_hit_that_does_not_compute_the_model_is_rebuilt(tmp_path, monkeypatch) -> None:
+    """A structure key that missed a constant (simulated: one key for every model) would find the library of another
+    ground angle; the certification against the numpy sweep rejects it and the step is built."""
+    monkeypatch.setattr(compiled_scene_key, "structure_key", lambda model: "one key for every model")
+    run(pendulum(), tmp_path)
+    turned = pendulum(angle=0.4)
+    generated = run(turned, tmp_path)
+    assert len(libraries(tmp_path)) == 2
+    assert_python_stepper(generated, turned)
