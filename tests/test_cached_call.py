@@ -12,12 +12,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import ctmm
 from ctmm import compiled_scene_key
-from ctmm.planar import ElasticHinge, Fixed, PlanarModel, RigidBody, simulate_implicit
+from ctmm.control import Feedback
+from ctmm.control.controlled_model import ControlledModel
+from ctmm.planar import ElasticHinge, Fixed, PlanarModel, RigidBody, SmoothHinge, simulate_implicit
 from ctmm.schemes import Newmark
-from test_planar_description_key import libraries
+from ctmm.signals import Harmonic
+from test_planar_description_key import forbid_building as forbid_scene_building, libraries
 
 casadi = pytest.importorskip("casadi")
+compiled_scene = pytest.importorskip("ctmm.compiled_scene")
 compiled_scene_schemes = pytest.importorskip("ctmm.compiled_scene_schemes")
 simulate_scheme_generated = compiled_scene_schemes.simulate_scheme_generated
 
@@ -95,3 +100,80 @@ def test_a_planar_scheme_hit_that_does_not_compute_the_model_is_rebuilt(tmp_path
     generated = run(turned, tmp_path)
     assert len(libraries(tmp_path)) == 2
     assert_python_stepper(generated, turned)
+
+
+# -- planar scenes with loops (numbers as inputs: the loops' gains, realisations and references are entries of p) --
+
+def arm(gain: float, fore_length: float = 0.6, delay_steps: int = 3, weight: float = 0.3) -> ControlledModel:
+    """Double pendulum: a real-time PD on the shoulder, a delayed loop on the height of the forearm's end (its code
+    keeps the forearm's length) and an LTI lag."""
+    control = pytest.importorskip("control")
+    plant = PlanarModel.chain("arm", [Fixed("ground"), SmoothHinge("pivot"),
+                                      RigidBody.uniform_link("rod", mass=1.0, length=0.8), SmoothHinge("elbow"),
+                                      RigidBody.uniform_link("fore", mass=0.5, length=fore_length)])
+    loops = [Feedback("pd", [("rod.theta", 1.0), ("rod.omega", weight)], "pivot.torque", gain=gain),
+             Feedback("late", "fore.out.y", "elbow.torque", gain=2.0, delay=delay_steps * LOOP_DT),
+             Feedback("lag", "fore.omega", "elbow.torque", gain=control.tf([1.5 * 30.0], [1.0, 30.0]))]
+    return ControlledModel(plant, loops)
+
+
+LOOP_DT, LOOP_T = 2e-3, 0.06
+ARM_START = {"x0": np.array([0.5, -0.2]), "v0": np.array([0.0, 0.4])}
+LOOP_SIGNALS = ["rod.theta", "fore.theta", "pd.u", "late.u", "lag.u"]
+
+
+def loop_run(system: ControlledModel, reference: float = 0.2, compiled: bool | None = True):
+    return ctmm.simulate(system, LOOP_T, LOOP_DT, compiled=compiled, references={"pd": Harmonic(reference, 7.0, 0.2),
+                                                                                 "late": 0.05}, **ARM_START)
+
+
+def assert_numpy_loop_path(generated, system: ControlledModel, reference: float = 0.2) -> None:
+    """Every loop signal equals the numpy loop driver (:mod:`ctmm.control.planar_time`) of ``system`` to round-off."""
+    numpy_path = loop_run(system, reference, compiled=False)
+    for name in LOOP_SIGNALS:
+        scale = max(1.0, float(np.max(np.abs(numpy_path[name]))))
+        assert np.max(np.abs(generated[name] - numpy_path[name])) < 1e-12 * scale, name
+
+
+def test_a_cached_call_with_loops_builds_nothing_for_other_gains_and_references(tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv("CTMM_CACHE", str(tmp_path))
+    first = loop_run(arm(6.0))
+    assert_numpy_loop_path(first, arm(6.0))
+    with monkeypatch.context() as patch:
+        forbid_scene_building(patch)
+        again = loop_run(arm(6.0))
+        assert all(np.array_equal(again[name], first[name]) for name in LOOP_SIGNALS)
+        other = loop_run(arm(11.0), reference=-0.4)                  # a gain and a reference: entries of p
+        assert_numpy_loop_path(other, arm(11.0), reference=-0.4)
+    assert len(libraries(tmp_path)) == 1
+    assert np.max(np.abs(other["rod.theta"] - first["rod.theta"])) > 1e-3      # the numbers matter
+
+
+@pytest.mark.parametrize("changed", [{"delay_steps": 4}, {"weight": 0.5}], ids=["delay", "sensor weight"])
+def test_a_changed_loop_constant_misses(tmp_path, monkeypatch, changed) -> None:
+    monkeypatch.setenv("CTMM_CACHE", str(tmp_path))
+    loop_run(arm(6.0))
+    with monkeypatch.context() as patch, pytest.raises(AssertionError, match="symbols were built"):
+        forbid_scene_building(patch)
+        loop_run(arm(6.0, **changed))
+    generated = loop_run(arm(6.0, **changed))
+    assert len(libraries(tmp_path)) == 2
+    assert_numpy_loop_path(generated, arm(6.0, **changed))
+
+
+def test_a_hit_whose_loop_sensors_keep_another_geometry_is_rebuilt(tmp_path, monkeypatch) -> None:
+    """The forearm's length is an entry of p for the sweep but a constant of the sensor ``fore.out.y``: the library of
+    one length is found by the description of another, the sweep's certification passes, the sensors' fails and
+    the step is built (without that check the run would use the old length: shown by disabling it)."""
+    monkeypatch.setenv("CTMM_CACHE", str(tmp_path))
+    loop_run(arm(6.0))
+    longer = arm(6.0, fore_length=0.9)
+    generated = loop_run(longer)
+    assert len(libraries(tmp_path)) == 2
+    assert_numpy_loop_path(generated, longer)
+    with monkeypatch.context() as patch:
+        patch.setattr(compiled_scene, "certified_sensors", lambda *_: True)
+        patch.setenv("CTMM_CACHE", str(tmp_path / "unchecked"))
+        loop_run(arm(6.0))
+        wrong = loop_run(longer)
+    assert np.max(np.abs(wrong["late.u"] - generated["late.u"])) > 1e-3
