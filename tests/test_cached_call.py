@@ -177,3 +177,33 @@ def test_a_hit_whose_loop_sensors_keep_another_geometry_is_rebuilt(tmp_path, mon
         loop_run(arm(6.0))
         wrong = loop_run(longer)
     assert np.max(np.abs(wrong["late.u"] - generated["late.u"])) > 1e-3
+
+
+def beam_system(gain: float) -> ControlledModel:
+    """Hub + modal beam (clamped-free shapes) + tip mass with a real-time PD and a delayed loop on the tip."""
+    from test_compiled_scene import hub_beam
+
+    return ControlledModel(hub_beam(), [
+        Feedback("pd", [("o.angle", 8.0), ("o.rate", 1.0)], "o.torque", gain=gain),
+        Feedback("end", [("tip.com.y", 3.0), ("tip.com.vx", 0.2)], "tip.force_y", gain=0.5, delay=2 * LOOP_DT)])
+
+
+def test_a_modal_beam_is_described_and_its_cached_call_with_loops_builds_nothing(tmp_path, monkeypatch) -> None:
+    """The beam's clamped-free shapes are objects of numbers (a lambda could not be described: the scene was keyed
+    on its built functions); a cached call with another gain builds nothing and equals the numpy loop driver."""
+    from ctmm.model_description import describe
+    from test_compiled_scene import _state
+
+    assert describe(beam_system(1.0).plant, numbers=False) is not None
+    monkeypatch.setenv("CTMM_CACHE", str(tmp_path))
+    q0, v0 = _state(beam_system(1.0).plant, 4)
+    names = [*beam_system(1.0).plant.coordinates, "pd.u", "end.u"]
+    ctmm.simulate(beam_system(1.0), 0.02, LOOP_DT, x0=q0, v0=v0, compiled=True)
+    with monkeypatch.context() as patch:
+        forbid_scene_building(patch)
+        generated = ctmm.simulate(beam_system(2.5), 0.02, LOOP_DT, x0=q0, v0=v0, compiled=True)
+    assert len(libraries(tmp_path)) == 1
+    numpy_path = ctmm.simulate(beam_system(2.5), 0.02, LOOP_DT, x0=q0, v0=v0, compiled=False)
+    for name in names:
+        scale = max(1.0, float(np.max(np.abs(numpy_path[name]))))
+        assert np.max(np.abs(generated[name] - numpy_path[name])) < 1e-11 * scale, name
