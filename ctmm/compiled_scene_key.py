@@ -7,8 +7,11 @@ its numbers (:func:`ctmm.model_description.describe` with ``numbers=False``) and
 :func:`~ctmm.compiled_parameters.structure_key` (the numbers the code keeps as constants), so models that differ
 only in entries of ``p`` share one library; a hit is then certified (:func:`certified_hit`) against the numpy
 sweep of the model, independent of the generated code, else the scene is built and keyed on its functions.
-:class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme` (a planar DT-TMM scheme without loops) keys its library the
-same way on :func:`scheme_description`: the model without its numbers, and the scheme's options with theirs.
+With loops whose numbers are inputs, the loops' other numbers are keyed exactly (:func:`loop_constants`) and the
+hit is also certified on the loop sensors (:func:`sensor_check`, :func:`certified_sensors`: their code keeps the
+plant's numbers).  :class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme` (a planar DT-TMM scheme without
+loops) keys its library the same way on :func:`scheme_description`: the model without its numbers, and the
+scheme's options with theirs.
 """
 from __future__ import annotations
 
