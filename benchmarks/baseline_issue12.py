@@ -55,7 +55,9 @@ four-bars' RK4 with projection in generated C; ``..._flexible_four_bar`` with a 
 ``chain_setup_scaling/cached_call_rk4_n1000`` (issue 13: the per-call set-up of a generated chain kernel) were measured
 alone when their benchmarks landed (``timings.added_later``); ``chain_default_limits/dense_chain_reason_n1002`` and
 ``.../cached_call_newmark_n1002`` (issue 13: the default's chain kind check, and a cached generated Newmark call just
-above the dense kinds' limit) were added with their benchmark and are to be measured alone the same way.
+above the dense kinds' limit) were added with their benchmark and are to be measured alone the same way;
+``kernel_cache/cached_call_planar_pendulum10_newmark`` and ``..._loops_rk4`` (issue 13, session 13: cached planar
+scheme and loop calls keyed before building) were measured alone when they landed.
 Python time-stepping cases whose
 benchmark horizon would make the repeats slow run over a shorter horizon at the benchmark's step
 (stated in ``configuration``): the per-step cost does not depend on the horizon.
@@ -498,6 +500,14 @@ def _kernel_cache(t: Timings) -> None:
     t.add("kernel_cache", "cached_call_spatial_revolute6_rk4", run, per="call", count=1,
           configuration="ctmm.simulate(compiled=True) of a 6-link spatial revolute chain, 1 s at dt = 1 ms, the "
                         "library already in the cache (key taken before the time loop is built)")
+    for case, what in (("planar_pendulum10_newmark", "the generated Newmark of a 10-link planar pendulum chain"),
+                       ("planar_pendulum10_loops_rk4", "the generated RK4 of a 10-link planar pendulum chain with a "
+                                                       "real-time PD and a delayed loop (their numbers inputs p)")):
+        run = bench.planar_cases()[case]
+        run()                                   # compile once (or find the library in the cache)
+        t.add("kernel_cache", f"cached_call_{case}", run, per="call", count=1,
+              configuration=f"ctmm.simulate(compiled=True): {what}, 0.1 s at dt = 1 ms, the library already in the "
+                            "cache (keyed on the description before anything is built, session 13)")
 
 
 def _kinematic_loops_generated(t: Timings) -> None:

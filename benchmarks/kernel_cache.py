@@ -48,6 +48,15 @@ the numbers, a hit certified against the numpy sweep; new case ``planar_pendulum
 0.055-0.061 -> 0.035-0.036 s; other cases unchanged; every cached call bit for bit equal to the first.  The
 cached ``CompiledScene`` alone (best of 7 CPU): 21 / 27 / 46 ms -> 4.2 / 11 / 24 ms at N = 10 / 40 / 100.
 
+Session 13 (planar DT-TMM schemes, and planar scenes with loops whose numbers are inputs, keyed on their description
+before anything is built: the plant without its numbers, its structure key, the scheme options or the loops' constants;
+a hit certified against the numpy sweep and, with loops, on the loop sensors; new cases ``planar_pendulum10_newmark``,
+0.1 s at 1 ms, and ``planar_pendulum10_loops_rk4``, a real-time PD and a delayed loop, 0.1 s at 1 ms).  Measured
+2026-11-26 (``session13_before1/2``: commit 6765695, ``session13_after1/2``: this change, alternated, load 6 on 2
+cores; best CPU of 7 cached calls, before -> after): Newmark 0.19-0.27 -> 0.024-0.035 s, loops 0.081-0.086 ->
+0.026-0.042 s (kernel 0.13 -> 0.02-0.04 s); first calls 4-6 s wall both; every cached call bit for bit equal to the
+first.
+
 Run ``python benchmarks/kernel_cache.py [--label after]``; adds the run under its label to
 ``benchmarks/results/kernel_cache.json`` (``before``: the same file run from a checkout of the commit
 before the change, ``--out`` pointing here).
@@ -121,6 +130,7 @@ def cases() -> dict:
                                  SpringDamper("k1", 80.0, 0.3), Mass("m1", 1.5), SpringDamper("k2", 60.0, 0.2),
                                  Mass("m2", 1.2), Free("e")])
     return {
+        **planar_cases(),
         "chain3_newmark_pid": lambda: ctmm.simulate(three, 1.0, 1e-3, method="newmark", compiled=True,
                                                     x0={"m1": 0.02}, controllers=[pid]),
         "chain100_loop_rk4": lambda: ctmm.simulate(chain, 1.0, 1e-3, method="rk4", compiled=True, x0=x0),
@@ -134,6 +144,27 @@ def cases() -> dict:
                                                         x0=long_q0),
         "spatial16_loop_pid": lambda: ctmm.simulate(arm16, 0.2, 1e-3, compiled=True, x0=long_q0,
                                                     controllers=[arm_pid]),
+    }
+
+
+def planar_cases() -> dict:
+    """Session 13: the planar DT-TMM scheme and a planar scene with loops (their numbers as inputs), keyed before
+    anything is built (a design loop's call with another gain finds the same library, as in
+    ``tests/test_cached_call.py``)."""
+    from ctmm.control import Feedback, with_feedback
+
+    pendulum = pendulum_chain(10)
+
+    def controlled(gain: float) -> object:
+        return with_feedback(pendulum_chain(10), [
+            Feedback("pd", [("h0.angle", 8.0), ("h0.rate", 1.0)], "h0.torque", gain=gain),
+            Feedback("late", [("b9.theta", 3.0)], "h5.torque", gain=0.5, delay=4e-3)])
+
+    return {
+        "planar_pendulum10_newmark": lambda: ctmm.simulate(pendulum, 0.1, 1e-3, method="newmark", compiled=True,
+                                                           x0=np.full(10, 0.2)),
+        "planar_pendulum10_loops_rk4": lambda: ctmm.simulate(controlled(1.0), 0.1, 1e-3, compiled=True,
+                                                             x0=np.full(10, 0.2)),
     }
 
 

@@ -69,7 +69,8 @@ import numpy as np
 from . import validation
 from .articulated import articulated_sweep
 from .compiled_loops import ClosedLoops
-from .compiled_scene_key import certified_hit, scene_description
+from .compiled_scene_key import (certified_hit, certified_sensors, described_time_loop, scene_description,
+                                sensor_check)
 from .compiled_station_loads import symbolic_terms_with_station_loads
 from .compiled_scene_fold import (FOLD_MIN_BODIES, fold_period, folded_acceleration, planar_fold_refusal,
                                   symbolic_inputs)
@@ -77,7 +78,7 @@ from .compiled_parameters import (compile_refusal, compiled_actuators, constants
                                   structure_key, symbolic_numbers)
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
-from .generated_loop import BlockRunner, compiled_time_loop, rk4_step_function, run_blocks
+from .generated_loop import BlockRunner, rk4_step_function, run_blocks
 from .ops import CASADI
 from .planar.guards import check_scheme, check_stored, divergence_guard
 from .planar.integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total
@@ -191,6 +192,7 @@ class CompiledScene:
         n, n_p = model.n_coordinates, self.parameters.size
         if self.loops is not None:
             self.parameters = np.concatenate([self.parameters, self.loops.parameter_values])
+        checked = self.loops is not None and numbers == "inputs"    # the loop sensors' code keeps plant numbers
 
         def build() -> tuple[Any, list]:
             """The step and the acceleration on symbols (only when the library is not cached)."""
@@ -219,24 +221,21 @@ class CompiledScene:
                 else:       # the loops closed at every stage, the delayed ones from the ring in the state
                     step = self.loops.step(acceleration, len(self.actuators), n_p)
             self._symbolic_step = step                  # the generated step on symbols (ctmm.fmu_export)
-            return step, [acceleration]
+            return step, [acceleration] + ([sensor_check(self.loops)] if checked else [])
 
         self._symbolic_step, self._build = None, build
         name = f"scene_{model.n_bodies}b{n}q" + (f"{len(self.loops.laws)}l" if self.loops else "") + (
             f"_fold{self.period}" if self.period else "")
         description = scene_description(controlled or model, numbers, self.period, (dt, references, signals),
-                                        self.station_inputs)
-        if description is not None:     # keyed before anything is built: a cached library builds no symbols
-            loop = compiled_time_loop(build, store_every, self.rows, name, description=description,
-                                      cache_dir=cache_dir, compiler=compiler)
-        if description is not None and self._symbolic_step is None and controlled is None and \
-                numbers == "inputs" and not certified_hit(model, loop.extra[0], self.parameters):
-            description = None          # a hit that does not compute this model: key on the built functions
-        if description is None:
-            step, extra = build()
-            loop = compiled_time_loop(step, store_every, self.rows, name, extra=extra, cache_dir=cache_dir,
-                                      compiler=compiler)
-        (self._acceleration,), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, loop.blocks
+                                        self.station_inputs, self.loops)
+
+        def certify(extra: tuple) -> bool:      # a hit by a description without numbers: checked, never trusted
+            return certified_hit(model, extra[0], self.parameters[:extra[0].size1_in(3)]) and (
+                not checked or certified_sensors(self.loops, extra[1]))
+
+        loop = described_time_loop(description, build, certify if numbers == "inputs" else None, store_every,
+                                   self.rows, name, cache_dir=cache_dir, compiler=compiler)
+        self._acceleration, self._step, self._stride, self._blocks = loop.extra[0], loop.step, loop.stride, loop.blocks
         self._closed_rate = None
         if self.loops is not None and not self.loops.delayed:       # the closed loop's rate, on the library
             x, u_all = ca.MX.sym("x", self.state_size), ca.MX.sym("u", len(self.actuators))

@@ -31,13 +31,13 @@ generated RK4 compiles (:func:`ctmm.compiled_scene.symbolic_accelerations_with_i
   where :mod:`ctmm.compiled_newton_weighting` gives the tangent of the mass-weighted residual ``M r`` (hinge
   angles and modal coordinates), as the transfer form is (``tests/test_compiled_newton_weighting.py``).
 
-Generated state: the history ``6 n`` followed by ``[first failed step, its residual, Newton iterations so
-far]``.  A step that does not converge (or gives a non-finite acceleration) stores NaN from then on, which
-ends the run (:func:`ctmm.generated_loop.run_blocks`) and is raised as a :class:`~ctmm.errors.ConvergenceError`
-naming the step, time and residual with the states stored before it as ``partial_result``.  The scheme
-and the Newton options are constants of the code (the cache key is the serialized step,
-:func:`ctmm.generated_loop.compiled_time_loop`, as for the generated RK4 of planar scenes); the model's
-numbers are the input ``p`` (:func:`ctmm.compiled_parameters.parameter_vector`).
+Generated state: the history ``6 n`` followed by ``[first failed step, its residual, Newton iterations so far]``. A
+step that does not converge (or gives a non-finite acceleration) stores NaN from then on, which ends the run
+(:func:`ctmm.generated_loop.run_blocks`) and is raised as a :class:`~ctmm.errors.ConvergenceError` naming the step,
+time and residual with the states stored before it as ``partial_result``. The scheme and the Newton options are
+constants of the code, the model's numbers the input ``p`` (:func:`parameter_vector`); the library is keyed before
+anything is built (:func:`ctmm.compiled_scene_key.scheme_description`, a hit certified against the numpy sweep; with
+loops on the serialized step: :func:`ctmm.generated_loop.compiled_time_loop`).
 
 Refused (:class:`~ctmm.errors.ModelError`): what the generated RK4 refuses, a scheme whose step is not linear in its
 history (loops: :mod:`ctmm.compiled_scheme_loops`; controllers: :mod:`ctmm.compiled_scheme_cosim`).
@@ -54,10 +54,11 @@ from . import validation
 from .compiled_parameters import compile_refusal, compiled_actuators, parameter_vector
 from .compiled_newton_weighting import inverse_mass_terms, mapped_weighted_residual, weighted_residual_terms
 from .compiled_scene import symbolic_accelerations_with_inputs
+from .compiled_scene_key import certified_hit, described_time_loop, scheme_description
 from .compiled_scene_fold import folded_accelerations_with_inputs, scheme_fold_period
 from .compiled_sweep_newton import iteration_count, sweep_iteration, sweep_refusal
 from .errors import ConvergenceError, ModelError
-from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
+from .generated_loop import BlockRunner, run_blocks
 from .mapped_tangent import residual_terms as mapped_residual_terms, tangent_construction
 from .planar.guards import check_scheme, check_stored, divergence_guard
 from .planar.integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total
@@ -354,8 +355,7 @@ class CompiledSceneScheme(SchemeHooks):
     cache_dir, compiler, tangent, station_inputs
         Of :func:`ctmm.codegen.shared_library`; the Newton tangent's construction ("mapped", "symbolic", "sweep":
         :mod:`ctmm.compiled_sweep_newton`; None: by size, :func:`ctmm.mapped_tangent.tangent_construction`); beam
-        station loads that are inputs too
-        (:func:`~ctmm.compiled_parameters.compiled_actuators`, :mod:`ctmm.compiled_scheme_cosim`).
+        station loads that are inputs too (:func:`~ctmm.compiled_parameters.compiled_actuators`, cosimulation).
 
     Attributes
     ----------
@@ -384,16 +384,15 @@ class CompiledSceneScheme(SchemeHooks):
             "CompiledSceneScheme", tolerance, max_iterations, store_every, rows)
         start = _time.perf_counter()
         self.model, self.checked_steps = model, set()      # steps [s] check_step_scaling accepted
-        self.maps = scheme_maps(self.scheme, 1.0)
-        self.actuators = compiled_actuators(model, station_inputs)
+        self.maps, self.actuators = scheme_maps(self.scheme, 1.0), compiled_actuators(model, station_inputs)
         self.parameters = parameter_vector(model)
-        acceleration = self.closed_acceleration()
-        step = self._step_function(acceleration)
         name = f"scene_{model.n_bodies}b{model.n_coordinates}q_{self.scheme.name}" + ("_loops" if self.loops else "")
-        loop = compiled_time_loop(step, self.store_every, rows, name, extra=[acceleration, *self.state_functions],
-                                  cache_dir=cache_dir, compiler=compiler)
+        described = (self.scheme, self.tangent, self.period, self.tolerance, self.max_iterations, self.actuators)
+        loop = described_time_loop(scheme_description(model, described) if type(self) is CompiledSceneScheme else None,
+                                   self._built, lambda extra: certified_hit(model, extra[0], self.parameters),
+                                   self.store_every, rows, name, cache_dir=cache_dir, compiler=compiler)  # (loops: read
         (self._acceleration, *more), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, \
-            loop.blocks
+            loop.blocks                         # more, keyed on the built functions)
         self.state_functions, self.compile_time_s = tuple(more), _time.perf_counter() - start
 
     def closed_acceleration(self) -> Any:
@@ -412,10 +411,11 @@ class CompiledSceneScheme(SchemeHooks):
         """Length of the generated state: the history ``6 n``, :data:`STATUS` and :attr:`controller_size`."""
         return self.status_index + len(STATUS) + self.controller_size
 
-    def _step_function(self, acceleration: Any) -> Any:
-        """``step(y, u, h, p, t0, k)``: one scheme step with Newton (module docstring)."""
+    def _built(self) -> tuple[Any, list]:
+        """``(step(y, u, h, p, t0, k), [closed_acceleration(), *state_functions])`` on symbols (on a cache miss)."""
         import casadi as ca
 
+        closed = self.closed_acceleration()
         n, n_u, n_p = self.model.n_coordinates, len(self.actuators), self.parameters.size
         a, q_hat, v_hat = (ca.SX.sym(label, n) for label in ("a", "q_hat", "v_hat"))
         w, g, t = ca.SX.sym("w"), ca.SX.sym("g"), ca.SX.sym("t")
@@ -426,7 +426,7 @@ class CompiledSceneScheme(SchemeHooks):
         residual_terms = mapped_weighted_residual(self.model, self.actuators, self.period) if mapped and \
             self.loops is None else None
         if residual_terms is None and self.tangent != "sweep":
-            rates = self.iterate_acceleration(acceleration, q, v, u, p, t, c, s)
+            rates = self.iterate_acceleration(closed, q, v, u, p, t, c, s)
             if mapped:
                 residual_terms = mapped_residual_terms(ca.Function("rates", [q, v, u, p, t, c, s], [rates]))
             else:                       # the symbolic Jacobian of the straight-line sweep
@@ -455,7 +455,7 @@ class CompiledSceneScheme(SchemeHooks):
                                  [self.controller_update(q, v, u, p, t, c, s)])
             after = update(new[0], new[1], u_in, p_in, t0 + (k + 1.0) * h, controller, h)
             out.append(ca.if_else(failed, ca.MX.nan(self.controller_size, 1), after))
-        return ca.Function("step", [y, u_in, h, p_in, t0, k], [ca.vertcat(*out)])
+        return ca.Function("step", [y, u_in, h, p_in, t0, k], [ca.vertcat(*out)]), [closed, *self.state_functions]
 
     def accelerations(self, q: Any, qdot: Any, t: float = 0.0) -> np.ndarray:
         """``qddot`` [unit/s^2] of the generated sweep at ``(q, qdot, t)`` without actuator inputs."""

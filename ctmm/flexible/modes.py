@@ -81,6 +81,17 @@ def _clamped_free_shape(beta: float, xi: np.ndarray, derivative: int) -> np.ndar
 
 
 @dataclass(frozen=True)
+class _ClampedFreeShape:
+    """One clamped-free eigenfunction ``f(xi, derivative)`` (:func:`_clamped_free_shape`) as an object of numbers: a
+    model holding it is described exactly (:func:`ctmm.model_description.describe`; a lambda is not)."""
+
+    beta: float
+
+    def __call__(self, xi, derivative: int) -> np.ndarray:
+        return _clamped_free_shape(self.beta, np.asarray(xi, float), derivative)
+
+
+@dataclass(frozen=True)
 class ModeSet:
     """Transverse shape functions of a beam in its floating frame.
 
@@ -107,8 +118,7 @@ class ModeSet:
     def clamped_free(cls, count: int) -> "ModeSet":
         """The first ``count`` clamped-free eigenfunctions (``int_0^1 phi^2 d xi = 1``)."""
         betas = clamped_free_betas(count)
-        funcs = tuple((lambda xi, d, b=float(b): _clamped_free_shape(b, np.asarray(xi, float), d))
-                      for b in betas)
+        funcs = tuple(_ClampedFreeShape(float(b)) for b in betas)
         return cls("clamped-free", funcs, "clamped-free", tuple(float(b) for b in betas))
 
     @classmethod
