@@ -14,7 +14,21 @@ from ctmm.sweeps import parallel_map as sweeps_parallel_map
 def _square_or_fail(x: int) -> int:
     if x == 3:
         raise ZeroDivisionError("task 3 failed")
-    time.sleep(1.5 if x == 0 else 0.3)
+    time.sleep(0.05)
+    return x * x
+
+
+def _held_or_fail(argument: tuple[int, str]) -> int:
+    """Task 0 waits until the test writes ``<folder>/release`` (at most 60 s) and then writes ``<folder>/done``;
+    task 3 fails at once; the others return."""
+    x, folder = argument
+    if x == 3:
+        raise ZeroDivisionError("task 3 failed")
+    if x == 0:
+        deadline = time.monotonic() + 60.0
+        while not os.path.exists(os.path.join(folder, "release")) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        open(os.path.join(folder, "done"), "w").close()
     return x * x
 
 
@@ -48,17 +62,16 @@ def test_results_in_input_order(executor):
 
 
 @pytest.mark.parametrize("executor", ["threads", "processes"])
-def test_failing_task_is_reported_when_it_fails(executor):
-    """Task 0 takes 1.5 s, the others 0.3 s (2 s in all on 2 workers); task 3 fails at ~0.3 s.
-
-    Waiting for the results in input order would report it after task 0 (>= 1.5 s).
-    """
-    started = time.perf_counter()
+def test_failing_task_is_reported_when_it_fails(executor, tmp_path):
+    """Task 0 is held until the test releases it; task 3 fails at once.  The failure must reach the caller while
+    task 0 is still held: waiting for the results in input order would report it only after task 0 (which then
+    writes its ``done`` marker, after a 60 s hold).  Ordered by events, not timed."""
     with pytest.raises(ZeroDivisionError, match="task 3 failed") as info:
-        parallel_map(_square_or_fail, range(8), executor=executor, description="test sweep")
-    elapsed = time.perf_counter() - started
-    assert elapsed < 1.2, f"failure reported after {elapsed:.2f} s"
-    assert any("item 3 (3)" in note for note in info.value.__notes__)
+        parallel_map(_held_or_fail, [(x, str(tmp_path)) for x in range(8)], executor=executor,
+                     description="test sweep")
+    assert not (tmp_path / "done").exists(), "the failure was reported only after the held task 0 finished"
+    (tmp_path / "release").touch()
+    assert any("item 3 (" in note for note in info.value.__notes__)
 
 
 def test_failing_task_sequential_names_the_item():
