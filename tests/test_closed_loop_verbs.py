@@ -43,11 +43,14 @@ def test_simulate_honours_the_cut_joint_with_every_method():
     assert np.max(rk4["drift"]) < 1e-12 and rk4.info["projection"] is True
     dop = ctmm.simulate(loop, 0.2, 1e-2, x0=q0, v0=v0, method="DOP853", rtol=1e-11, atol=1e-12)
     assert len(dop.time) == 21 and np.max(np.abs(dop["rocker.theta"] - reference.angle("rocker")[::10])) < 1e-8
-    # the DT-TMM scheme: second order against the DAE, projected onto the cut after every step, drift reported
+    # the DT-TMM scheme: second order against the DAE, projected onto the cut after every step, drift reported;
+    # over 0.06 s (the DAE's index 60): the order needs the steps in the asymptotic range, not the long run
+    # (measured 2.2e-6 / 5.5e-7 rad, ratio 4.005)
+    assert reference.t[60] == pytest.approx(0.06, abs=1e-12)
     errors = []
     for dt in (2e-3, 1e-3):
-        run = ctmm.simulate(loop, 0.2, dt, x0=q0, v0=v0, method="newmark")
-        errors.append(np.max(np.abs(run["crank.theta"][-1] - reference.angle("crank")[-1])))
+        run = ctmm.simulate(loop, 0.06, dt, x0=q0, v0=v0, method="newmark")
+        errors.append(np.max(np.abs(run["crank.theta"][-1] - reference.angle("crank")[60])))
         assert run.info["newton_iterations_max"] <= 6 and np.max(run["drift"]) < 1e-10
         assert np.max(run["drift"]) == pytest.approx(run.info["max_drift_m"])
     assert errors[1] < 1e-4 and 3.0 < errors[0] / errors[1] < 5.0

@@ -44,15 +44,16 @@ def state() -> tuple[np.ndarray, np.ndarray]:
 
 
 def hand_shortening(beam: SpatialBeam, eta: np.ndarray, x_end: float) -> float:
-    """``1/2 int_0^x_end |w'|^2 dx`` [m]: slopes by central differences of ``Phi(x) eta``, Simpson's rule."""
+    """``1/2 int_0^x_end |w'|^2 dx`` [m]: slopes by central differences of ``Phi(x) eta`` (the beam's shapes at all
+    stations at once: the ``Phi`` of a station, without its ``G1``), Simpson's rule."""
     x = np.linspace(0.0, x_end, 2001)
     step = 1e-6
+    ahead, behind = np.minimum(x + step, beam.length), np.maximum(x - step, 0.0)
 
-    def deflection(s: float) -> np.ndarray:
-        return beam.data.station(s)[0][1:] @ eta                 # the transverse rows y, z
+    def deflection(s: np.ndarray) -> np.ndarray:
+        return np.einsum("rnk,n->kr", beam.data.shapes(s)[1:], eta)   # the transverse rows y, z at each station
 
-    slopes = np.array([(deflection(min(s + step, beam.length)) - deflection(max(s - step, 0.0)))
-                       / (min(s + step, beam.length) - max(s - step, 0.0)) for s in x])
+    slopes = (deflection(ahead) - deflection(behind)) / (ahead - behind)[:, None]
     return 0.5 * scipy.integrate.simpson(np.sum(slopes ** 2, axis=1), x=x)
 
 

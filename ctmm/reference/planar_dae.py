@@ -266,23 +266,30 @@ class PlanarDAE:
         return q[3 * i:3 * i + 2] + r, v[3 * i:3 * i + 2] + v[3 * i + 2] * (_TURN @ r)
 
     def constraints(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``Phi``, ``Phi'``, ``Phi_q`` and ``gamma`` of all joints."""
+        """``Phi``, ``Phi'``, ``Phi_q`` and ``gamma`` of all joints (all joints at once: the ground is one more
+        body at rest at the origin, its columns dropped)."""
         nb, nj = len(self.bodies), len(self.joints)
-        phi, phi_dot = np.zeros(2 * nj), np.zeros(2 * nj)
-        jac, gamma = np.zeros((2 * nj, 3 * nb)), np.zeros(2 * nj)
-        for k, joint in enumerate(self.joints):
-            rows = slice(2 * k, 2 * k + 2)
-            pa, va = self._point(q, v, joint.a, joint.point_a)
-            pb, vb = self._point(q, v, joint.b, joint.point_b)
-            phi[rows], phi_dot[rows] = pa - pb, va - vb
-            for i, s, sign in ((joint.a, joint.point_a, 1.0), (joint.b, joint.point_b, -1.0)):
-                if i is None:
-                    continue
-                r = _rotation(q[3 * i + 2]) @ s
-                jac[rows, 3 * i:3 * i + 2] = sign * np.eye(2)
-                jac[rows, 3 * i + 2] = sign * (_TURN @ r)
-                gamma[rows] += sign * r * v[3 * i + 2] ** 2
-        return phi, phi_dot, jac, gamma
+        if nj == 0:
+            return np.zeros(0), np.zeros(0), np.zeros((0, 3 * nb)), np.zeros(0)
+        q_all = np.concatenate([np.asarray(q, float), np.zeros(3)]).reshape(nb + 1, 3)
+        v_all = np.concatenate([np.asarray(v, float), np.zeros(3)]).reshape(nb + 1, 3)
+        rows = np.arange(nj)
+        phi, phi_dot = np.zeros((nj, 2)), np.zeros((nj, 2))
+        jac, gamma = np.zeros((nj, 2, 3 * (nb + 1))), np.zeros((nj, 2))
+        for side, sign in (("a", 1.0), ("b", -1.0)):
+            bodies = np.array([nb if getattr(joint, side) is None else getattr(joint, side) for joint in self.joints])
+            s = np.array([getattr(joint, f"point_{side}") for joint in self.joints])
+            theta, omega = q_all[bodies, 2], v_all[bodies, 2]
+            cos, sin = np.cos(theta), np.sin(theta)
+            r = np.column_stack([cos * s[:, 0] - sin * s[:, 1], sin * s[:, 0] + cos * s[:, 1]])
+            turned = np.column_stack([-r[:, 1], r[:, 0]])                   # _TURN @ r
+            phi += sign * (q_all[bodies, :2] + r)
+            phi_dot += sign * (v_all[bodies, :2] + omega[:, None] * turned)
+            jac[rows, 0, 3 * bodies] = sign
+            jac[rows, 1, 3 * bodies + 1] = sign
+            jac[rows, :, 3 * bodies + 2] = sign * turned
+            gamma += sign * r * (omega ** 2)[:, None]
+        return phi.ravel(), phi_dot.ravel(), jac[:, :, :3 * nb].reshape(2 * nj, 3 * nb), gamma.ravel()
 
     def _generalised_forces(self, q: np.ndarray, v: np.ndarray, t: float = 0.0) -> np.ndarray:
         nb = len(self.bodies)
