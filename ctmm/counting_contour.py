@@ -197,16 +197,19 @@ def fixed_root_note(roots: np.ndarray, sigma: float) -> str:
 
 
 def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, tau_max: float,
-            im_max: float | None) -> tuple[float, np.ndarray, ContourCertificate]:
+            im_max: float | None, *, fixed_on_line: np.ndarray | None = None
+                   ) -> tuple[float, np.ndarray, ContourCertificate]:
     """Contour height ``R`` [rad/s], open-loop poles (line seeds) and the certificate of the
     region ``Re s >= sigma, |Im s| <= R`` for a parameter box (:mod:`ctmm.certification`); a
-    user ``im_max`` too small for the loop warns (:class:`StabilityWarning`)."""
+    user ``im_max`` too small for the loop warns (:class:`StabilityWarning`).  ``fixed_on_line``:
+    :func:`~ctmm.certification.fixed_roots` ``(model, sigma)`` when the caller has it already (an
+    eigenvalue problem of the open loop's realisation)."""
     growth = math.exp(max(0.0, -sigma) * tau_max)
     if im_max is not None:
         im_max = validation.positive("im_max", im_max)
     notes: list[str] = []
     for line in (sigma, 0.0) if sigma < 0 else (sigma,):
-        fixed = fixed_roots(model, line)
+        fixed = fixed_on_line if line == sigma and fixed_on_line is not None else fixed_roots(model, line)
         if fixed.size:
             notes.append(fixed_root_note(fixed, line) + ("; counts on this line are -1" if line == sigma else ""))
     try:
@@ -311,7 +314,8 @@ def build_contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: 
     resolution : int
         Initial number of line samples.
     """
-    radius, poles, certificate = contour_height(model, weight_bound, sigma, tau_max, im_max)
+    fixed = fixed_roots(model, sigma)                 # for the certificate's notes and the contour
+    radius, poles, certificate = contour_height(model, weight_bound, sigma, tau_max, im_max, fixed_on_line=fixed)
     growth = math.exp(max(0.0, -sigma) * tau_max)
     notes = list(certificate.notes)
     for _ in range(8):
@@ -338,7 +342,7 @@ def build_contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: 
     seeds = _resonance_samples(poles, sigma, radius)
     line = _VerticalPath(model, [complex(sigma, 0.0), complex(sigma, radius)], n0, tau_max,
                          1e-13 * radius, seeds)
-    return Contour(model, sigma, radius, line, float(steps.sum()), notes, certificate, fixed_roots(model, sigma))
+    return Contour(model, sigma, radius, line, float(steps.sum()), notes, certificate, fixed)
 
 
 def _resonance_samples(poles: np.ndarray, sigma: float, radius: float) -> np.ndarray:

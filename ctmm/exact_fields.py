@@ -52,7 +52,8 @@ from .saturation import refuse_saturation
 from .loop_phasors import close_loops, loop_signal
 from .results import FrequencyResponse
 
-__all__ = ["ExactForm", "exact_form", "form_response", "frequency_response", "natural_frequencies"]
+__all__ = ["ExactForm", "exact_form", "form_response", "frequency_response", "ExactResponse",
+           "natural_frequencies"]
 
 #: Largest hinge angle [rad], modal coordinate and rate counted as zero at the operating point.
 STRAIGHT_TOLERANCE = 1e-9
@@ -399,14 +400,12 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     from .planar import ports
     from .planar.model import PlanarModel
 
-    model, loops = (system, ()) if isinstance(system, PlanarModel) else (system.plant, tuple(system.loops))
-    refuse_saturation(loops, "the frequency-domain verbs (fields='exact')")
-    inputs = list(validation.names("input", input))
-    outputs = list(validation.names("output", output))
+    responder = ExactResponse(system, input, output, operating_point)
+    model, inputs, outputs = responder.model, responder.inputs, responder.outputs
     omega = validation.frequencies("omega", omega)
     started = time.perf_counter()
-    form = exact_form(model, operating_point)
-    response = form_response(form, loops, omega, inputs, outputs)
+    response = responder(omega)
+    form = responder.form
     sensors, actuators = set(ports.sensor_names(model)), set(ports.actuator_names(model))
     units = {name: ports.actuator_unit(model, name) for name in inputs if name in actuators}
     units.update({name: ports.sensor_unit(model, name) for name in outputs if name in sensors})
@@ -414,6 +413,41 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
             "wall_time_s": time.perf_counter() - started, "n_frequencies": int(omega.size),
             "chain_elements": len(form.chain.elements)}
     return FrequencyResponse(omega, response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)
+
+
+class ExactResponse:
+    """``omega -> response[i_out, i_in, k]`` of :func:`frequency_response`, the exact form built once.
+
+    The form (:func:`exact_form`: the operating point, the checks, the bending chain) does not depend
+    on the frequency; it is built at the first call and answers every later call, so a search that
+    evaluates a few frequencies at a time (the margins' crossover refinement) builds it once.
+
+    Parameters
+    ----------
+    system : PlanarModel or ControlledModel
+    input, output : str or sequence of str
+        As for :func:`frequency_response`.
+    operating_point : optional
+        As for :func:`ctmm.linearize` (default: the static equilibrium).
+    """
+
+    def __init__(self, system: Any, input: str | Sequence[str], output: str | Sequence[str],  # noqa: A002
+                 operating_point: Any = None) -> None:
+        from .planar.model import PlanarModel
+
+        self.model, self.loops = ((system, ()) if isinstance(system, PlanarModel)
+                                  else (system.plant, tuple(system.loops)))
+        refuse_saturation(self.loops, "the frequency-domain verbs (fields='exact')")
+        self.inputs = list(validation.names("input", input))
+        self.outputs = list(validation.names("output", output))
+        self.operating_point = operating_point
+        self.form: ExactForm | None = None
+
+    def __call__(self, omega: np.ndarray) -> np.ndarray:
+        """``response[i_out, i_in, k]`` at checked angular frequencies ``omega`` [rad/s]."""
+        if self.form is None:
+            self.form = exact_form(self.model, self.operating_point)
+        return form_response(self.form, self.loops, omega, self.inputs, self.outputs)
 
 
 def form_response(form: Any, loops: Sequence[Any], omega: np.ndarray, inputs: list[str],

@@ -238,12 +238,14 @@ class _LumpedModel:
     def _state_names(self, a: np.ndarray, b: np.ndarray) -> list[str]:
         """``"<mass>.x"``, ``"<mass>.v"`` of the massive DOFs, ``"<point>.x"`` of the first-order ones."""
         chain, pd = self.chain, self.point_dof
-        labels = []
-        for g in range(pd.max(initial=-1) + 1):
-            masses = [e.name for j, e in enumerate(chain.body, start=1)
-                      if _is_mass(e) and pd[j] == g]
-            points = [p for p, d in zip(chain.point_names(), pd) if d == g]
-            labels.append(masses[0] if masses else points[0])
+        first_mass: dict[int, str] = {}     # DOF -> its first mass (one pass over the chain, not one per DOF)
+        for j, e in enumerate(chain.body, start=1):
+            if _is_mass(e):
+                first_mass.setdefault(int(pd[j]), e.name)
+        first_point: dict[int, str] = {}
+        for p, d in zip(chain.point_names(), pd):
+            first_point.setdefault(int(d), p)
+        labels = [first_mass[g] if g in first_mass else first_point[g] for g in range(pd.max(initial=-1) + 1)]
         return ([f"{labels[g]}.x" for g in a] + [f"{labels[g]}.v" for g in a]
                 + [f"{labels[g]}.x" for g in b])
 

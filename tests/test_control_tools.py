@@ -124,6 +124,16 @@ def test_default_state_space_signals():
     assert ss.nstates == 6
 
 
+def test_state_names_follow_the_first_mass_of_each_degree_of_freedom():
+    """A DOF's states are named after its first mass (``m2`` of the rigid pair ``m2``-``m3``), a massless damped
+    point after the point (first-order state); a massless undamped point is condensed (no state)."""
+    chain = ctmm.Chain("c", [Fixed("wall"), Spring("k0", 100.0), Damper("d1", 2.0), Mass("m1", 1.0), Spring("k2", 50.0),
+                             Mass("m2", 2.0), Mass("m3", 1.0), Spring("k4", 10.0), Spring("k5", 10.0), Mass("m5", 1.0),
+                             Free("end")])
+    ss = to_state_space(chain, inputs="m1.force", outputs="m2.x")
+    assert ss.state_labels == ["m1_x", "m2_x", "m5_x", "m1_v", "m2_v", "m5_v", "k0|d1_x"]
+
+
 def test_to_frd_from_response_and_system():
     setup = seed_setup([(2, "displacement", 0, 5.0, 0.05, None, False)])
     frf = ctmm.frequency_response(setup.system, OMEGA, input="m1.force", output=["m0.x", "loop0.u"])

@@ -117,11 +117,31 @@ def test_pzt_feedback_flattens_the_first_flexible_resonance(seed):
     assert ratio < 0.35, ratio              # measured 0.266 on this grid
 
 
-def test_margins_of_the_hub_and_of_a_patch(seed):
+def test_margins_of_the_hub_and_of_a_patch(seed, monkeypatch):
+    import ctmm.exact_fields as exact_fields
+
+    built, build = [], exact_fields.exact_form
+    monkeypatch.setattr(exact_fields, "exact_form", lambda *args, **kwargs: built.append(1) or build(*args, **kwargs))
     scene = manipulator_scene(seed, pd=HubPD(SEED_KP, SEED_KD), pzt=PZTFeedback.per_patch([SEED_PZT_GAIN] * 3))
     hub = margins(scene, HUB_LOOP, np.logspace(-1, 3, 300), fields="exact")
     assert 40.0 < hub.phase_margin < 90.0 and np.isfinite(hub.delay_margin)
+    # one exact form answers the grid and every crossover refinement (it was rebuilt at each of ~80 evaluations)
+    assert len(built) == 1
     patch = margins(scene, "pzt1", np.logspace(0, 3.3, 300), fields="exact")
     # collocated slope-rate feedback: phase of L in (-90, 90) deg -> no phase crossover below 2 kHz
     assert patch.gain_margin == np.inf or patch.gain_margin > 1.0
     assert patch.delay_margin > 1e-3
+
+
+def test_an_exact_response_answers_every_call_as_a_fresh_one(seed):
+    """The exact form built at the first call is not changed by a solve: later calls (other frequencies,
+    as in the margins' refinement) equal a fresh form's answer exactly."""
+    from ctmm.exact_fields import ExactResponse
+
+    scene = manipulator_scene(seed, pd=HubPD(SEED_KP, SEED_KD), pzt=PZTFeedback.per_patch([SEED_PZT_GAIN] * 3))
+    ports = (["hub_pd.reference", "pzt1.reference"], ["arm.tip.w", "hub_pd.u"])
+    reused = ExactResponse(scene, *ports)
+    first = reused(OMEGA[::-2])
+    later = reused(OMEGA)
+    fresh = ExactResponse(scene, *ports)(OMEGA)
+    assert np.array_equal(later, fresh) and np.array_equal(first, fresh[..., ::-2])

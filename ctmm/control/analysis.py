@@ -83,7 +83,8 @@ def _open_loop_plant_function(system: ControlledChain | ControlledModel, loop: s
                               fields: str | None) -> Callable[[np.ndarray], np.ndarray]:
     """``omega [rad/s] (validated array) -> P_yu(i omega)`` of :func:`open_loop_plant`; a planar or spatial model
     (``fields`` ``None`` / ``"modal"``) is linearised once, at the first call, and that answers every call
-    (:func:`ctmm.frequency_response`'s numbers); chains and exact fields answer each call afresh."""
+    (:func:`ctmm.frequency_response`'s numbers); a planar model with exact fields builds its exact form once
+    (:class:`ctmm.exact_fields.ExactResponse`); chains answer each call afresh."""
     if not isinstance(system, (ControlledChain, ControlledModel)):
         raise ModelError(f"a loop transfer function needs a ControlledChain or a ControlledModel, got {system!r}")
     lp = system.loop(loop)
@@ -99,17 +100,25 @@ def _open_loop_plant_function(system: ControlledChain | ControlledModel, loop: s
     options = {} if fields is None else {"fields": fields}
     modal = isinstance(system, ControlledModel) and validation.option("fields", fields or "modal",
                                                                       ("modal", "exact")) == "modal"
+    from ..planar_frequency import PlanarResponse, is_planar_system
+    exact = None
     if modal:                                   # one linearisation (at the first call) answers every call
         from ..linearize import linearize
-        from ..planar_frequency import PlanarResponse, is_planar_system
         respond = PlanarResponse(open_system, inputs, signals) if is_planar_system(open_system) else \
             delayed_loop_response_function(lambda into, out: linearize(open_system, inputs=into, outputs=out),
                                            getattr(open_system, "loops", ()), inputs, signals,
                                            getattr(open_system, "plant", open_system).name)
+    elif fields is not None and is_planar_system(open_system):   # exact fields: one form answers every call
+        from ..exact_fields import ExactResponse
+        exact = ExactResponse(open_system, inputs, signals)
 
     def plant(w: np.ndarray) -> np.ndarray:
-        frf = FrequencyResponse(w, respond(1j * w), tuple(inputs), tuple(signals), "P") if modal else \
-            frequency_response(open_system, w, input=inputs, output=signals, **options)
+        if modal:
+            frf = FrequencyResponse(w, respond(1j * w), tuple(inputs), tuple(signals), "P")
+        elif exact is not None:
+            frf = FrequencyResponse(w, exact(validation.frequencies("omega", w)), tuple(inputs), tuple(signals), "P")
+        else:
+            frf = frequency_response(open_system, w, input=inputs, output=signals, **options)
         P = np.zeros(w.size, dtype=complex)
         for inp, a_weight in actuators:
             for sig, weight in lp.terms:
