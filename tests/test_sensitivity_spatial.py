@@ -98,6 +98,60 @@ def test_delayed_revolute_pd_root_derivative_matches_the_closed_form():
         assert abs(found.root_gradient[name] - (-dP / P_s)) < 1e-9, name
 
 
+def test_spatial_terms_are_built_once_per_structure_and_evaluated_with_each_models_numbers():
+    # ctmm.sensitivity_spatial_terms: the rotor with other numbers (a stiffness, a mass, a loop gain) is served by the
+    # one build of its structure and evaluated with its own numbers -- equal to a fresh build and to the closed form;
+    # another geometry (the centre of mass) or a number set to zero (a constant of the expression) is another build
+    from ctmm.sensitivity_spatial_terms import SpatialTerms, spatial_terms, structure_description
+    from ctmm.spatial.ports import SpatialPorts
+    from ctmm.spatial_linearization import operating_point
+    from ctmm.compiled_spatial_parameters import spatial_parameter_vector
+    from ctmm.sensitivity_spatial import spatial_parameter_index
+
+    names = ["j.stiffness", "link.mass", "pd.gain"]
+
+    def closed_form(system, arm_length):
+        k, mass, gain = (S.parameter_values(system, names)[n] for n in names)
+        inertia, c, stiffness = INERTIA + mass * arm_length ** 2, C + gain * KD, k + gain * KP
+        root = (-c + np.sqrt(complex(c * c - 4 * inertia * stiffness))) / (2 * inertia)
+        P_s = 2 * inertia * root + c
+        return root, {n: -dP / P_s for n, dP in zip(names, [1.0, arm_length ** 2 * root ** 2,
+                                                              KP + KD * root])}
+
+    def terms_of(system):
+        plant = system.plant
+        ports = SpatialPorts(plant)
+        indices = [-1 if n.startswith("pd.") else spatial_parameter_index(plant, n) for n in names]
+        return plant, ports, tuple(ports.actuators), indices
+
+    base = rotor()
+    changed = S.with_parameters(base, {"j.stiffness": 7.5, "link.mass": 2.6, "pd.gain": 1.4})
+    moved = with_feedback(sp.SpatialModel("rotor", [
+        sp.SpatialBody("link", MASS, np.diag([0.1, 0.2, INERTIA]), center_of_mass=(0.5, 0.0, 0.0)),
+        sp.Revolute(name="j", parent=None, child="link", axis=(0, 0, 1), stiffness=K, damping=C, actuated=True)]),
+        list(base.loops))
+    undamped = S.with_parameters(base, {"j.damping": 0.0})
+    assert structure_description(base.plant) == structure_description(changed.plant)
+    assert structure_description(moved.plant) != structure_description(base.plant)
+    assert structure_description(undamped.plant) != structure_description(base.plant)
+    shared = spatial_terms(*terms_of(base))
+    assert spatial_terms(*terms_of(changed)) is shared and spatial_terms(*terms_of(moved)) is not shared
+    plant = changed.plant
+    point = operating_point(plant, None)
+    served = shared.linearisation(point.q, spatial_parameter_vector(plant), point.t)
+    fresh = SpatialTerms(*terms_of(changed)).linearisation(point.q, spatial_parameter_vector(plant), point.t)
+    nominal = shared.linearisation(point.q, spatial_parameter_vector(base.plant), point.t)
+    for a, b, c in zip(served, fresh, nominal):
+        assert np.max(np.abs(a - b), initial=0.0) <= 1e-14 * max(np.max(np.abs(b), initial=0.0), 1.0)
+    assert np.max(np.abs(served[0] - nominal[0])) > 0.1 * np.max(np.abs(nominal[0]))      # the numbers are honoured
+    for system, arm_length in ((base, ARM), (changed, ARM), (moved, 0.5), (base, ARM)):
+        found = S.spectral_abscissa_sensitivity(system, names)
+        root, gradient = closed_form(system, arm_length)
+        assert abs(found.root - root) < 1e-12 * abs(root)
+        for n in names:
+            assert abs(found.root_gradient[n] - gradient[n]) < 1e-10 * max(1.0, abs(gradient[n])), n
+
+
 def test_revolute_pd_free_response_derivatives_match_the_closed_form():
     # I theta'' + (c + kd) theta' + (k + kp) theta = 0 from theta0: RK4 at 1 ms against the exact solution and
     # its exact derivatives (complex step of the closed form); they differ by the RK4 error only
