@@ -18,7 +18,7 @@ from ctmm.control import Constraint, Feedback, Quantity, margins, tune, with_fee
 from ctmm.errors import ModelError
 from scenarios import spatial_elastic_hinge_control as hinge
 from ctmm.state_space_characteristic import characteristic_of
-from tests.test_sensitivity import relative
+from tests.test_sensitivity import central_difference, relative
 
 def richardson(f, system, name: str) -> np.ndarray:
     """Central difference extrapolated over h, h/2 (error O(h^4)), ``h = 1e-3 |value|`` (inertias of 0.05 kg m^2)."""
@@ -30,16 +30,6 @@ def richardson(f, system, name: str) -> np.ndarray:
                 - np.asarray(f(S.with_parameters(system, {name: v - step})))) / (2 * step)
 
     return (4 * central(h / 2) - central(h)) / 3
-
-
-def central_difference(f, system, name: str, step: float = 1e-4) -> np.ndarray:
-    """One central difference, ``h = step |value|``: half the runs of :func:`richardson` for references that are
-    expensive (simulations, root searches); truncation ``O(h^2)`` (~1e-8 relative at the default step) and
-    round-off ~1e-16 / step relative (each use states its measured error against its bound)."""
-    v = S.parameter_values(system, [name])[name]
-    h = step * abs(v)
-    return (np.asarray(f(S.with_parameters(system, {name: v + h})))
-            - np.asarray(f(S.with_parameters(system, {name: v - h})))) / (2 * h)
 
 
 def refined_abscissa(system, **region) -> float:

@@ -21,8 +21,8 @@ import ctmm.spatial as sp
 from ctmm import sensitivity as S
 from ctmm.control import Feedback, with_feedback
 from ctmm.errors import ModelError
-from tests.test_sensitivity import relative
-from tests.test_sensitivity_spatial import central_difference, richardson
+from tests.test_sensitivity import central_difference, relative
+from tests.test_sensitivity_spatial import richardson
 
 BEAM = dict(length=1.0, mass_per_length=0.9, bending_stiffness_y=6.0, bending_stiffness_z=4.0, n_modes_y=2,
             n_modes_z=1, n_torsion_modes=1, torsional_stiffness=1.5, polar_inertia_per_length=0.004,

@@ -18,7 +18,7 @@ from ctmm.control import Feedback, with_feedback
 from ctmm.errors import ModelError
 from ctmm.signals import Harmonic
 from tests.test_compiled_spatial_signals import driven_chain
-from tests.test_sensitivity_spatial import central_difference
+from tests.test_sensitivity import central_difference
 
 pytest.importorskip("casadi")
 
