@@ -294,7 +294,7 @@ class SpatialCharacteristicMatrix(PlanarCharacteristicMatrix):
                 raise ModelError(f"ctmm.sensitivity: sensor {name!r} is a rotation-vector component, not stated on "
                                  f"symbols; use the x-y-z angles '{name.split('.')[0]}.angle_x|y|z' or a tangent "
                                  "coordinate")
-            value, slope = self.terms.sensor(name, self.ports.sensors[name], self.point.q)
+            value, slope = self.terms.sensor(name, self.ports, self.point.q)
             self._check_neutral(slope, max(float(np.max(np.abs(value))), 1.0), f"sensor {name!r}")
             self.rows[name] = (value, slope @ self.equilibrium_derivative if len(self.parameters)
                                else np.zeros((self.n, 0)))

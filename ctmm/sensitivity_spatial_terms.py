@@ -13,8 +13,9 @@ build once and evaluates it with the new numbers.
 no result depends on whether it was hit), keyed on :func:`structure_description`: the model described exactly
 (:func:`ctmm.model_description.describe`, every number, the geometry, axes, loads, driven motions and zeros) with
 the entries of its parameter layout (:func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout`, the
-inputs ``p``) replaced by a marker, the actuators and the time.  Two models with one key state the same
-expression of ``(q*, p, t)``; a model that cannot be described (``None``) is built every time.
+inputs ``p``) replaced by a marker, and the actuators (their port records).  Two models with one key state the
+same expression of ``(q*, p, t)``; a model that cannot be described (``None``) is built every time.  Sensor rows are
+kept per sensor record (name and its exact description) and stated with the ports of the system that asks.
 """
 from __future__ import annotations
 
@@ -137,7 +138,7 @@ class SpatialTerms:
     def __init__(self, model: Any, ports: Any, actuators: Sequence[str], indices: Sequence[int]) -> None:  # noqa: D107
         import casadi as ca
 
-        from .compiled_spatial_loops import SpatialSymbols, loop_acceleration
+        from .compiled_spatial_loops import loop_acceleration
         from .compiled_spatial_parameters import spatial_parameter_layout
 
         nq, nv = model.n_positions, model.n_velocities
@@ -155,7 +156,7 @@ class SpatialTerms:
             J, Ju, ca.jacobian(f, a), ca.jacobian(f, d), ca.jacobian(ca.vec(J), a), ca.jacobian(ca.vec(J), d),
             ca.jacobian(ca.vec(Ju), a), ca.jacobian(ca.vec(Ju), d)])
         self.sizes = (nv, m, k)
-        self.symbols = (SpatialSymbols(model, ports), q0, q, a, x, v)
+        self.model, self.symbols = model, (q0, q, a, x, v)
         self.rows: dict[Any, Any] = {}
         self.lock = threading.Lock()
 
@@ -168,18 +169,20 @@ class SpatialTerms:
             values = self.terms(q, p, t, np.zeros(nv), np.zeros(nv), np.zeros(nv), np.zeros(m), np.zeros(k))
         return tuple(np.asarray(value, dtype=float) for value in values)
 
-    def sensor(self, name: str, port: Any, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(row, d row / da)`` of sensor port ``name`` (``port`` its port object, part of the memo key) at
-        ``q* = q``: ``(2 nv,)``, ``(2 nv, nv)``."""
+    def sensor(self, name: str, ports: Any, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(row, d row / da)`` of sensor port ``name`` of ``ports`` (the asking system's; its record is part of the
+        memo key) at ``q* = q``: ``(2 nv,)``, ``(2 nv, nv)``.  A sensor is kinematic: the numbers of ``p`` do not
+        enter it."""
         import casadi as ca
 
+        from .compiled_spatial_loops import SpatialSymbols
         from .model_description import describe
 
-        key = (name, describe(port))
-        symbols, q0, q_symbol, a, x, v = self.symbols
+        key = (name, describe(ports.sensors[name]))
+        q0, q_symbol, a, x, v = self.symbols
         with self.lock:
             if key[1] is None or key not in self.rows:
-                row = ca.jacobian(symbols.sensor(name, q_symbol, v), x)
+                row = ca.jacobian(SpatialSymbols(self.model, ports).sensor(name, q_symbol, v), x)
                 self.rows[key] = ca.Function("row", [q0, a, x], [row, ca.jacobian(row, a)])
             value, slope = self.rows[key](q, np.zeros(a.size1()), np.zeros(x.size1()))
         return np.asarray(value, dtype=float).reshape(-1), np.asarray(slope, dtype=float).reshape(-1, a.size1())

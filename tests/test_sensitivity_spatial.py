@@ -144,12 +144,21 @@ def test_spatial_terms_are_built_once_per_structure_and_evaluated_with_each_mode
     for a, b, c in zip(served, fresh, nominal):
         assert np.max(np.abs(a - b), initial=0.0) <= 1e-14 * max(np.max(np.abs(b), initial=0.0), 1.0)
     assert np.max(np.abs(served[0] - nominal[0])) > 0.1 * np.max(np.abs(nominal[0]))      # the numbers are honoured
+    omega = np.array([0.5, 4.0, 11.0])
     for system, arm_length in ((base, ARM), (changed, ARM), (moved, 0.5), (base, ARM)):
         found = S.spectral_abscissa_sensitivity(system, names)
         root, gradient = closed_form(system, arm_length)
         assert abs(found.root - root) < 1e-12 * abs(root)
         for n in names:
             assert abs(found.root_gradient[n] - gradient[n]) < 1e-10 * max(1.0, abs(gradient[n])), n
+        # a point sensor row (the centre of mass across the arm: y = d sin(theta)), served from the memo per record
+        k, mass, gain = (S.parameter_values(system, names)[n] for n in names)
+        s = 1j * omega
+        P = (INERTIA + mass * arm_length ** 2) * s ** 2 + C * s + k + gain * (KP + KD * s)
+        response = S.frequency_response_sensitivity(system, names, omega, input="j.torque", output="link.com.y")
+        assert relative(response.response, arm_length / P) < 1e-12
+        for i, dP in enumerate([1.0, arm_length ** 2 * s ** 2, KP + KD * s]):
+            assert relative(response.derivative[i], -arm_length * dP / P ** 2) < 1e-10, names[i]
 
 
 def test_revolute_pd_free_response_derivatives_match_the_closed_form():
