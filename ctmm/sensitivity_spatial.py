@@ -49,7 +49,8 @@ import numpy as np
 from . import validation
 from .errors import ModelError, unknown_name
 from .sensitivity_model import ParameterDerivative, loop_parameter
-from .sensitivity_planar import PlanarCharacteristicMatrix, equilibrium_motion, selection
+from .sensitivity_planar import PlanarCharacteristicMatrix, equilibrium_motion
+from .sensitivity_spatial_terms import spatial_terms, symbolic_retraction
 
 __all__ = ["SpatialCharacteristicMatrix", "is_spatial_system", "spatial_parameter_index", "spatial_parameter_values",
            "spatial_with_parameters", "symbolic_retraction"]
@@ -205,50 +206,6 @@ def spatial_with_parameters(system: Any, values: Mapping[str, float]) -> Any:
     return out
 
 
-# ------------------------------------------------------------------------------ symbols
-def _quaternion_exp(r: Any) -> list:
-    """``exp(r)`` as ``[w, x, y, z]`` to third order in ``r`` (exact value, first and second derivatives at 0)."""
-    theta2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
-    half = 0.5 * (1.0 - theta2 / 24.0)
-    return [1.0 - theta2 / 8.0, half * r[0], half * r[1], half * r[2]]
-
-
-def _quaternion_product(a: Sequence[Any], b: Sequence[Any]) -> list:
-    wa, xa, ya, za = a
-    wb, xb, yb, zb = b
-    return [wa * wb - xa * xb - ya * yb - za * zb, wa * xb + wb * xa + ya * zb - za * yb,
-            wa * yb + wb * ya + za * xb - xa * zb, wa * zb + wb * za + xa * yb - ya * xb]
-
-
-def symbolic_retraction(model: Any, q0: Any, delta: Any) -> Any:
-    """``q0 (+) delta`` of :func:`ctmm.spatial_linearization.retract` on casadi symbols (columns ``nq``,
-    ``nv``), the quaternion exponential to third order (module docstring)."""
-    import casadi as ca
-
-    from .ops import CASADI
-    from .spatial.frames import quaternion_rotation
-
-    q = [q0[i] for i in range(model.n_positions)]
-    for joint, layout in zip(model.joints, model.layout):
-        if joint.driven or joint.kind == "weld":
-            continue
-        start, d = layout.position.start, [delta[i] for i in range(layout.velocity.start, layout.velocity.stop)]
-        if joint.kind == "spherical":
-            q[start:start + 4] = _quaternion_product(q[start:start + 4], _quaternion_exp(d))
-        elif joint.kind in ("free", "elastic6"):
-            rotation = quaternion_rotation(CASADI, *q[start + 3:start + 7])
-            moved = ca.mtimes(rotation, ca.vertcat(*d[:3]))
-            q[start:start + 3] = [q[start + i] + moved[i] for i in range(3)]
-            q[start + 3:start + 7] = _quaternion_product(q[start + 3:start + 7], _quaternion_exp(d[3:]))
-        else:
-            q[start:start + len(d)] = [q[start + i] + d[i] for i in range(len(d))]
-    for layout in model.modal:                      # beams' modal coordinates: plain increments
-        if layout is not None:
-            q[layout.position] = [q[i] + delta[k] for i, k in zip(range(layout.position.start, layout.position.stop),
-                                                                  range(layout.velocity.start, layout.velocity.stop))]
-    return ca.vertcat(*q)
-
-
 class SpatialCharacteristicMatrix(PlanarCharacteristicMatrix):
     """``Delta(s) = s I - A + sum_l K_l b_l c_l^T`` of a spatial (controlled) model (module docstring).
 
@@ -267,10 +224,7 @@ class SpatialCharacteristicMatrix(PlanarCharacteristicMatrix):
     """
 
     def __init__(self, system: Any, parameters: Sequence[str] = ()) -> None:  # noqa: D107 -- class docstring
-        import casadi as ca
-
-        from .compiled_spatial_loops import SpatialSymbols, loop_acceleration
-        from .compiled_spatial_parameters import spatial_parameter_layout, spatial_parameter_vector
+        from .compiled_spatial_parameters import spatial_parameter_vector
         from .spatial.ports import SpatialPorts
         from .planar_linearization import EQUILIBRIUM_TOLERANCE
         from .spatial_linearization import operating_point, tangent_names
@@ -281,29 +235,18 @@ class SpatialCharacteristicMatrix(PlanarCharacteristicMatrix):
         nv = model.n_velocities
         self.n = 2 * nv
         self.actuator_names = tuple(ports.actuators)
-        m, k = len(self.actuator_names), len(self.parameters)
-        p0 = spatial_parameter_vector(model)
-        select = selection(p0.size, indices)
+        m = len(self.actuator_names)
         self.ports, self.tangent_names = ports, tuple(tangent_names(model)) + tuple(model.velocities)
-        a, b, v, u, d = (ca.SX.sym(label, size) for label, size in (("a", nv), ("b", nv), ("v", nv), ("u", m),
-                                                                  ("d", k)))
-        q = symbolic_retraction(model, symbolic_retraction(model, ca.DM(self.point.q), a), b)
-        acceleration = loop_acceleration(model, ports, self.actuator_names, spatial_parameter_layout(model))
-        f = acceleration(q, v, u, ca.DM(p0) + ca.DM(select) @ d, self.point.t)
-        x = ca.vertcat(b, v)
-        J, Ju = ca.jacobian(f, x), ca.jacobian(f, u)
-        terms = ca.Function("terms", [a, b, v, u, d], [
-            J, Ju, ca.jacobian(f, a), ca.jacobian(f, d), ca.jacobian(ca.vec(J), a), ca.jacobian(ca.vec(J), d),
-            ca.jacobian(ca.vec(Ju), a), ca.jacobian(ca.vec(Ju), d)])
-        zero = [np.zeros(nv), np.zeros(nv), np.zeros(nv), np.zeros(m), np.zeros(k)]
-        J, Ju, f_a, f_d, J_a, J_d, Ju_a, Ju_d = (np.asarray(value, dtype=float) for value in terms(*zero))
+        # built once per structure (ctmm.sensitivity_spatial_terms), evaluated at this model's q*, numbers and time
+        self.terms = spatial_terms(model, ports, self.actuator_names, indices)
+        J, Ju, f_a, f_d, J_a, J_d, Ju_a, Ju_d = self.terms.linearisation(self.point.q, spatial_parameter_vector(model),
+                                                                          self.point.t)
         self._refuse_neutral(f_a, [J_a], J, indices)
         self.input_slopes, self.checked_inputs = Ju_a.reshape(m, nv, nv), set()       # d B[:, j] / da per input j
         self.equilibrium_derivative = equilibrium_motion(            # (nv, k): the equilibrium's tangent motion
             f_a, f_d, model.name, [p.value for p in self.parameters],
             1e-3 * EQUILIBRIUM_TOLERANCE * (1.0 + np.max(np.abs(model.gravity))), neutral=True)
         da = self.equilibrium_derivative
-        self.symbols = (SpatialSymbols(model, ports), q, a, x, v)
         self.rows: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.set_linearisation(J, Ju, J_d + J_a @ da, Ju_d + Ju_a @ da, lambda name: self.output_row(name, 0.0))
 
@@ -344,8 +287,6 @@ class SpatialCharacteristicMatrix(PlanarCharacteristicMatrix):
     def _sensor(self, name: str) -> tuple[np.ndarray, np.ndarray] | None:
         """``(row, d row / dp)`` (``(2 nv,)``, ``(2 nv, k)``) of a sensor port stated on symbols, its row moving
         with the equilibrium; ``None`` for a name that is not a sensor port."""
-        import casadi as ca
-
         if name not in self.ports.sensors:
             return None
         if name not in self.rows:
@@ -353,13 +294,10 @@ class SpatialCharacteristicMatrix(PlanarCharacteristicMatrix):
                 raise ModelError(f"ctmm.sensitivity: sensor {name!r} is a rotation-vector component, not stated on "
                                  f"symbols; use the x-y-z angles '{name.split('.')[0]}.angle_x|y|z' or a tangent "
                                  "coordinate")
-            symbols, q, a, x, v = self.symbols
-            row = ca.jacobian(symbols.sensor(name, q, v), x)
-            value, slope = (np.asarray(y, dtype=float) for y in ca.Function("row", [a, x], [row, ca.jacobian(
-                row, a)])(np.zeros(a.size1()), np.zeros(x.size1())))
+            value, slope = self.terms.sensor(name, self.ports, self.point.q)
             self._check_neutral(slope, max(float(np.max(np.abs(value))), 1.0), f"sensor {name!r}")
-            self.rows[name] = (value.reshape(-1), slope.reshape(-1, a.size1()) @ self.equilibrium_derivative
-                               if len(self.parameters) else np.zeros((self.n, 0)))
+            self.rows[name] = (value, slope @ self.equilibrium_derivative if len(self.parameters)
+                               else np.zeros((self.n, 0)))
         return self.rows[name]
 
     # -- ports ---------------------------------------------------------------------------------

@@ -15,7 +15,7 @@ from ctmm.errors import ModelError
 from ctmm.flexible import ModalBeam
 from ctmm.planar import ActuatedHinge, DamperHinge, Fixed, PlanarModel, RigidBody, SpringDamperHinge
 from ctmm.planar.elements import FixedMounting
-from tests.test_sensitivity import relative, richardson
+from tests.test_sensitivity import central_difference, relative, richardson
 
 G, LENGTH = 9.81, 0.5
 
@@ -163,7 +163,8 @@ def test_tune_a_planar_pd_arm_for_damping_under_a_delay_margin():
 
 @pytest.mark.parametrize("delay, lti", [(0.0, False), (0.02, False), (0.0, True)])
 def test_controlled_planar_histories_match_differences_of_the_simulation(delay, lti):
-    # loops inside the generated RK4: real-time, delayed (ring of samples), LTI controller (its states)
+    # loops inside the generated RK4: real-time, delayed (ring of samples), LTI controller (its states); one central
+    # difference of the numpy RK4 per number (h = 1e-4 |p|; measured relative error <= 3.9e-9, bound 1e-6)
     import control
 
     gain = control.tf([1.0], [0.05, 1.0]) if lti else 1.0
@@ -179,7 +180,7 @@ def test_controlled_planar_histories_match_differences_of_the_simulation(delay, 
 
     assert np.max(np.abs(found.values - history(system))) < 1e-12
     for i, name in enumerate(names):
-        assert relative(found.derivative[i], richardson(history, system, name)) < 1e-6, name
+        assert relative(found.derivative[i], central_difference(history, system, name)) < 1e-6, name
     with pytest.raises(ModelError, match="whole number of steps"):
         S.simulation_sensitivity(system, ["pd.delay"], t_final=0.1, dt=0.01, q0=[0.5, -0.3])
 

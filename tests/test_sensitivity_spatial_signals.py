@@ -3,7 +3,7 @@
 A pendulum on a revolute joint forced by a sinusoidal moment (linear regime) against the closed-form forced
 response from rest (its parameter derivatives by complex step of the closed form, and the steady amplitude's
 mass derivative by hand); a chain with a driven joint and a step / sine load, alone and with a PD loop,
-against Richardson-extrapolated central differences of two ``ctmm.simulate`` runs (the numpy RK4); the
+against central differences of two ``ctmm.simulate`` runs (the numpy RK4); the
 refusals that remain (user callables, loop sensors moving with a driven joint, the frequency domain).
 """
 from __future__ import annotations
@@ -18,6 +18,7 @@ from ctmm.control import Feedback, with_feedback
 from ctmm.errors import ModelError
 from ctmm.signals import Harmonic
 from tests.test_compiled_spatial_signals import driven_chain
+from tests.test_sensitivity import central_difference
 
 pytest.importorskip("casadi")
 
@@ -80,23 +81,12 @@ def test_forced_pendulum_history_and_amplitude_match_the_closed_form():
     assert abs(amplitude_slope - exact_slope) < 1e-7 * abs(exact_slope)
 
 
-def richardson(history, system, name: str) -> np.ndarray:
-    """Central differences of ``history`` over ``h, h/2`` extrapolated (truncation O(h^4)), ``h = 1e-3 |p|``."""
-    value = S.parameter_values(system, [name])[name]
-    h = 1e-3 * abs(value)
-
-    def central(step):
-        return (history(S.with_parameters(system, {name: value + step}))
-                - history(S.with_parameters(system, {name: value - step}))) / (2 * step)
-
-    return (4 * central(h / 2) - central(h)) / 3
-
-
 @pytest.mark.parametrize("loop", [False, True])
 def test_driven_joint_and_load_signals_match_differences_of_the_simulation(loop):
     # driven_chain: a revolute, a revolute driven by 0.4 sin(2 t + 0.3) in the middle, a ball joint, a step and
     # a sine force at the tip; outputs include a point and a rate outboard of the driven joint (they move with
-    # its signal).  Richardson differences: truncation ~(1e-3)^4, round-off ~1e-13 relative; measured <= 3.2e-11.
+    # its signal).  One central difference per number (h = 1e-4 |p|): truncation ~1e-8, round-off ~1e-12 relative;
+    # measured relative error <= 2.9e-9, bound 1e-7 (b.mass; Richardson over 1e-3, 5e-4 gave <= 3.2e-11).
     # 40 RK4 steps of 5 ms (the derivative of the same discrete run is compared; the step load at 10 ms and the
     # driven joint's sine are inside the run)
     model = driven_chain()
@@ -117,7 +107,7 @@ def test_driven_joint_and_load_signals_match_differences_of_the_simulation(loop)
     assert np.max(np.abs(found.values - history(model))) < 1e-12
     assert np.ptp(found.values[outputs.index("b.omega_y")]) > 0.1          # the driven joint moved body b
     for i, name in enumerate(names):
-        expected = richardson(history, model, name)
+        expected = central_difference(history, model, name)
         assert np.max(np.abs(found.derivative[i] - expected)) < 1e-7 * np.max(np.abs(expected)), name
 
 
