@@ -356,7 +356,18 @@ def casadi_source(functions: Sequence[Any], name: str) -> str:
         generator.add(function)
     with tempfile.TemporaryDirectory() as tmp:
         generator.generate(tmp + os.sep)
-        return hoisted_input_reads(Path(tmp, f"{name}.c").read_text())
+        return hoisted_input_reads(_empty_copies_removed(Path(tmp, f"{name}.c").read_text()))
+
+
+_EMPTY_COPY = re.compile(r"\bcasadi_copy\(0, 0, 0\+ \w+\*0\);")
+
+
+def _empty_copies_removed(text: str) -> str:
+    """Casadi C ``text`` without its copies of no number, ``casadi_copy(0, 0, 0+ i*0);`` (casadi 3.8 writes one per
+    column of an empty input repeated over a ``fold`` / ``mapaccum``: a time loop without inputs ``u`` or numbers
+    ``p``).  Their third argument is an integer expression passed as a pointer: GCC 14 and later refuse it (C99
+    ``-Wint-conversion`` is an error there), so the kernel would not compile; copying nothing, they are removed."""
+    return _EMPTY_COPY.sub("", text)
 
 
 _INPUT_READ = re.compile(r"\barg\[(\d+)\]\? arg\[\1\]\[(\d+)\] : 0")
