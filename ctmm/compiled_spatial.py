@@ -82,7 +82,9 @@ DEFAULT_ROWS = 64
 SPATIAL_FLAGS = ("-O1", "-shared", "-fPIC")
 """Compiler flags of spatial kernels: their straight-line C is long (about 700 instructions per revolute body
 and rate), and ``-O1`` compiles it 3.5x faster than ``-O2`` and runs it as fast (a 100-link revolute
-chain, one run on the 2-core machine: 50 s and 222 us per step against 172 s and 249 us)."""
+chain, one run on the 2-core machine: 50 s and 222 us per step against 172 s and 249 us).  The kernels of spatial
+kinematic loops (alone and in the loop driver) use them too: the R-U-S-R four-bar's RK4 with projection compiles in
+0.62x the gcc CPU of ``-O2`` at 0.93x its kernel CPU per step (``benchmarks/generated_flags.py``)."""
 FOLD_FLAGS = ("-O3", "-shared", "-fPIC")
 """Compiler flags of folded kernels (:func:`folded_velocity_rate`): their C holds one segment whatever N (about
 120 kB), so ``-O3`` costs a few tenths of a second more than ``-O1`` and runs the step about 25 % faster."""
