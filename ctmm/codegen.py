@@ -42,12 +42,19 @@ from typing import Any, Callable, Iterable, Sequence
 
 from .errors import ModelError
 
-__all__ = ["CompiledLibrary", "DEFAULT_FLAGS", "LINK_FLAGS", "cache_directory", "cache_key", "casadi_source",
+__all__ = ["CompiledLibrary", "DEFAULT_FLAGS", "LINK_FLAGS", "STRAIGHT_LINE_FLAGS", "cache_directory", "cache_key", "casadi_source",
            "compiler_identity", "find_compiler", "hoisted_input_reads", "load_casadi", "load_casadi_keyed", "load_ctypes",
            "run_compiler", "shared_library"]
 
 DEFAULT_FLAGS = ("-O2", "-shared", "-fPIC")
 """Compiler flags of :func:`shared_library` unless others are given."""
+STRAIGHT_LINE_FLAGS = ("-O1", "-shared", "-fPIC")
+"""Compiler flags of generated kernels whose step is straight-line code of scalar temporaries (RK4 of spatial
+models, of planar scenes without folds, of planar and spatial kinematic loops): gcc's time there goes to register
+allocation, and ``-O1`` compiles in 0.55-0.67x the CPU of ``-O2`` while the kernel runs as fast (interleaved best of
+repeated runs, ``benchmarks/generated_flags.py``: planar pendulum N = 10 RK4 0.98x, with a PD and a delayed loop
+1.04x, planar four-bar 0.97x, spatial four-bar 1.02x).  Not for chains (RK4 1.8x, Newmark 1.3x slower at ``-O1``) nor
+the Newton steps of planar DT-TMM schemes (Newmark 1.26x): they keep :data:`DEFAULT_FLAGS`."""
 LINK_FLAGS = ("-lm",)
 """Flags placed after the source file (libraries to link)."""
 _KEY_FORMAT = b"ctmm.codegen/1"

@@ -63,7 +63,7 @@ from typing import Any
 import numpy as np
 
 from . import validation
-from .codegen import DEFAULT_FLAGS
+from .codegen import STRAIGHT_LINE_FLAGS
 from .compiled_cut_points import (SymbolicCutSides, deformable_bodies, is_deformable_side,
                                   symbolic_accelerations_with_frame_loads)
 from .compiled_planar_sensors import SymbolicKinematics
@@ -189,8 +189,8 @@ class CompiledKinematicLoops:
         Wall time of building, generating and compiling (or loading from the cache) [s].
     """
 
-    flags: tuple[str, ...] = DEFAULT_FLAGS
-    """Compiler flags of the kernel (spatial models: :data:`ctmm.compiled_spatial.SPATIAL_FLAGS`)."""
+    flags: tuple[str, ...] = STRAIGHT_LINE_FLAGS
+    """Compiler flags of the kernel (straight-line code, :data:`ctmm.codegen.STRAIGHT_LINE_FLAGS`)."""
 
     def __init__(self, model: Any, *, store_every: int = 1, rows: int = DEFAULT_ROWS, iterations: int = 3,
                  cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:

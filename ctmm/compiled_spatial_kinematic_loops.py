@@ -56,7 +56,7 @@ from .articulated import articulated_sweep
 from .compiled_kinematic_loops import (CompiledKinematicLoops, first_failure, generated_failure, generated_run,
                                        cut_load_refusal, projected_rk4_step, symbolic_time_signal,
                                        tree_refusal)
-from .compiled_spatial import SPATIAL_FLAGS, position_rates, spatial_compile_refusal
+from .compiled_spatial import position_rates, spatial_compile_refusal
 from .compiled_spherical_cut_law import rotation_limit_note, spherical_law_cuts, symbolic_spherical_law_moment
 from .errors import SimulationError
 from .compiled_spatial_cut_points import (SymbolicStates, deformable_sides, symbolic_deformable_frame,
@@ -373,8 +373,6 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
     state_size : int
         ``nq + nv + 2``: ``[q, v, residual, condition]``.
     """
-
-    flags = SPATIAL_FLAGS
 
     @staticmethod
     def _refusal(model: Any) -> str:
