@@ -24,6 +24,16 @@ order).  Ratios against ``-O2`` in the same run.
 The flag set is forced by wrapping :func:`ctmm.codegen.load_casadi_keyed` as
 :mod:`ctmm.generated_loop` calls it (the library's choice per family is what the run labelled ``default`` uses).
 
+Measured 2026-11-26 (session 14; load 9-15 on 2 cores from other jobs; 2000 steps, best of 9 rounds; ratios to
+``-O2``, gcc CPU / kernel CPU per step): chain 100 + loop RK4 ``-O1`` 0.79 / 1.50, ``-O0`` 0.35 / 4.8; its Newmark
+``-O1`` 0.82 / 1.29; planar pendulum N = 10 RK4 ``-O1`` 0.54-0.67 / 1.06-1.16, Newmark 0.67 / 1.23, with a PD and a
+delayed loop 0.59-0.64 / 1.00-1.13; planar four-bar 0.60-0.68 / 1.01-1.15; spatial revolute N = 6 0.62-0.68 /
+1.09-1.26; spatial four-bar 0.54-0.73 / 0.81; ``-O0`` everywhere 0.25-0.40 / 2.3-4.8.  ``default`` and ``-O1`` are
+the same flags for the straight-line families after this session: their difference (up to 15-20 %) is the spread
+of the measurement on this machine.  Every stored signal bit for bit equal across the flag sets.  Hence
+:data:`ctmm.codegen.STRAIGHT_LINE_FLAGS` (``-O1``) for straight-line RK4 kernels and ``-O2`` for chains and the
+DT-TMM schemes.
+
 Run ``python benchmarks/generated_flags.py [--quick]``; writes ``benchmarks/results/generated_flags.json``.
 """
 from __future__ import annotations

@@ -51,10 +51,12 @@ DEFAULT_FLAGS = ("-O2", "-shared", "-fPIC")
 STRAIGHT_LINE_FLAGS = ("-O1", "-shared", "-fPIC")
 """Compiler flags of generated kernels whose step is straight-line code of scalar temporaries (RK4 of spatial
 models, of planar scenes without folds, of planar and spatial kinematic loops): gcc's time there goes to register
-allocation, and ``-O1`` compiles in 0.55-0.67x the CPU of ``-O2`` while the kernel runs as fast (interleaved best of
-repeated runs, ``benchmarks/generated_flags.py``: planar pendulum N = 10 RK4 0.98x, with a PD and a delayed loop
-1.04x, planar four-bar 0.97x, spatial four-bar 1.02x).  Not for chains (RK4 1.8x, Newmark 1.3x slower at ``-O1``) nor
-the Newton steps of planar DT-TMM schemes (Newmark 1.26x): they keep :data:`DEFAULT_FLAGS`."""
+allocation, and ``-O1`` compiles in 0.55-0.69x the CPU of ``-O2`` while the kernel's CPU per step stays within the
+measurement's spread (``benchmarks/generated_flags.py``, best of 9-15 interleaved runs, load 9-15 on 2 cores, where two
+identical ``-O1`` builds differ by up to 15-20 %): ``-O1`` / ``-O2`` 0.98-1.16 on planar RK4 (pendulum N = 10 with and
+without loops, four-bar) and 0.81-1.09 on spatial RK4 (revolute N = 6, four-bar).  Not for chains (RK4 1.5-1.8x,
+Newmark 1.3x slower at ``-O1``) nor the Newton steps of planar DT-TMM schemes (Newmark 1.23-1.26x): they keep
+:data:`DEFAULT_FLAGS`."""
 LINK_FLAGS = ("-lm",)
 """Flags placed after the source file (libraries to link)."""
 _KEY_FORMAT = b"ctmm.codegen/1"
