@@ -57,7 +57,9 @@ alone when their benchmarks landed (``timings.added_later``); ``chain_default_li
 ``.../cached_call_newmark_n1002`` (issue 13: the default's chain kind check, and a cached generated Newmark call just
 above the dense kinds' limit) were added with their benchmark and are to be measured alone the same way;
 ``kernel_cache/cached_call_planar_pendulum10_newmark`` and ``..._loops_rk4`` (issue 13, session 13: cached planar
-scheme and loop calls keyed before building) were measured alone when they landed.
+scheme and loop calls keyed before building) were measured alone when they landed;
+``generated_flags/first_compile_python_four_bar`` (issue 13, session 14: the Python part of a first compile of a
+generated kernel) was measured alone when its benchmark landed.
 Python time-stepping cases whose
 benchmark horizon would make the repeats slow run over a shorter horizon at the benchmark's step
 (stated in ``configuration``): the per-step cost does not depend on the horizon.
@@ -539,6 +541,17 @@ def _kinematic_loops_generated(t: Timings) -> None:
                         "steps")
 
 
+def _generated_flags(t: Timings) -> None:
+    bench = importlib.import_module("kinematic_loops_generated")
+    loop, _, _ = bench.four_bar()
+    with tempfile.TemporaryDirectory() as base:
+        t.add("generated_flags", "first_compile_python_four_bar",
+              lambda: bench.CompiledKinematicLoops(loop, cache_dir=tempfile.mkdtemp(dir=base)), per="compile", count=1,
+              configuration="the planar four-bar's generated RK4 with projection (CompiledKinematicLoops) built in a "
+                            "fresh cache folder: expressions, casadi functions and C text, CPU of this process (the "
+                            "compiler's CPU, a child process, is benchmarks/generated_flags.py's compiler_cpu_s)")
+
+
 def _chain_frf(t: Timings) -> None:
     bench = importlib.import_module("foundation_scaling")
     n = 1000
@@ -593,7 +606,8 @@ TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _f
                 _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes, _chain_compiled,
                 _chain_schemes_generated, _chain_ode_speed, _compiled_cosim, _batch_parameters, _kernel_cache,
                 _planar_frf, _compiled_schemes_planar, _compiled_schemes_default, _spatial_frf,
-                _kinematic_loops_generated, _chain_frf, _chain_setup_scaling, _chain_default_limits)
+                _kinematic_loops_generated, _chain_frf, _chain_setup_scaling, _chain_default_limits,
+                _generated_flags)
 
 
 def timings() -> dict:

@@ -42,12 +42,21 @@ from typing import Any, Callable, Iterable, Sequence
 
 from .errors import ModelError
 
-__all__ = ["CompiledLibrary", "DEFAULT_FLAGS", "LINK_FLAGS", "cache_directory", "cache_key", "casadi_source",
+__all__ = ["CompiledLibrary", "DEFAULT_FLAGS", "LINK_FLAGS", "STRAIGHT_LINE_FLAGS", "cache_directory", "cache_key", "casadi_source",
            "compiler_identity", "find_compiler", "hoisted_input_reads", "load_casadi", "load_casadi_keyed", "load_ctypes",
            "run_compiler", "shared_library"]
 
 DEFAULT_FLAGS = ("-O2", "-shared", "-fPIC")
 """Compiler flags of :func:`shared_library` unless others are given."""
+STRAIGHT_LINE_FLAGS = ("-O1", "-shared", "-fPIC")
+"""Compiler flags of generated kernels whose step is straight-line code of scalar temporaries (RK4 of spatial
+models, of planar scenes without folds, of planar and spatial kinematic loops): gcc's time there goes to register
+allocation, and ``-O1`` compiles in 0.55-0.69x the CPU of ``-O2`` while the kernel's CPU per step stays within the
+measurement's spread (``benchmarks/generated_flags.py``, best of 9-15 interleaved runs, load 9-15 on 2 cores, where two
+identical ``-O1`` builds differ by up to 15-20 %): ``-O1`` / ``-O2`` 0.98-1.16 on planar RK4 (pendulum N = 10 with and
+without loops, four-bar) and 0.81-1.09 on spatial RK4 (revolute N = 6, four-bar).  Not for chains (RK4 1.5-1.8x,
+Newmark 1.3x slower at ``-O1``) nor the Newton steps of planar DT-TMM schemes (Newmark 1.23-1.26x): they keep
+:data:`DEFAULT_FLAGS`."""
 LINK_FLAGS = ("-lm",)
 """Flags placed after the source file (libraries to link)."""
 _KEY_FORMAT = b"ctmm.codegen/1"
@@ -356,7 +365,18 @@ def casadi_source(functions: Sequence[Any], name: str) -> str:
         generator.add(function)
     with tempfile.TemporaryDirectory() as tmp:
         generator.generate(tmp + os.sep)
-        return hoisted_input_reads(Path(tmp, f"{name}.c").read_text())
+        return hoisted_input_reads(_empty_copies_removed(Path(tmp, f"{name}.c").read_text()))
+
+
+_EMPTY_COPY = re.compile(r"\bcasadi_copy\(0, 0, 0\+ \w+\*0\);")
+
+
+def _empty_copies_removed(text: str) -> str:
+    """Casadi C ``text`` without its copies of no number, ``casadi_copy(0, 0, 0+ i*0);`` (casadi 3.8 writes one per
+    column of an empty input repeated over a ``fold`` / ``mapaccum``: a time loop without inputs ``u`` or numbers
+    ``p``).  Their third argument is an integer expression passed as a pointer: GCC 14 and later refuse it (C99
+    ``-Wint-conversion`` is an error there), so the kernel would not compile; copying nothing, they are removed."""
+    return _EMPTY_COPY.sub("", text)
 
 
 _INPUT_READ = re.compile(r"\barg\[(\d+)\]\? arg\[\1\]\[(\d+)\] : 0")

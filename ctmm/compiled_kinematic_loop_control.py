@@ -71,6 +71,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from . import validation
+from .codegen import STRAIGHT_LINE_FLAGS
 from .compiled_control import add_loop_signals
 from .compiled_input_sensors import affine_sensor_map
 from .compiled_kinematic_loops import (cut_rows, kinematic_loop_compile_refusal, symbolic_closed_loop,
@@ -270,7 +271,7 @@ class CompiledKinematicLoopControl:
         step = _step(self.loops, self.closed, project if self.projection else None, self.nq, self.nv,
                      len(self.actuators), self.parameters.size)
         loop = compiled_time_loop(step, self.store_every, rows, f"kinematic_loop_control_{'spatial_' * spatial}"
-                                  f"{self.nq}q{len(model.cuts)}c", cache_dir=cache_dir)
+                                  f"{self.nq}q{len(model.cuts)}c", cache_dir=cache_dir, flags=STRAIGHT_LINE_FLAGS)
         self._blocks, self._stride, self._step = loop.blocks, loop.stride, loop.step
         self._signals = self.loops.signals()
         self._input_signals = {name: as_signal(f"inputs[{name!r}]", value) for name, value in self.inputs.items()}

@@ -63,6 +63,7 @@ from typing import Any
 import numpy as np
 
 from . import validation
+from .codegen import STRAIGHT_LINE_FLAGS
 from .compiled_cut_points import (SymbolicCutSides, deformable_bodies, is_deformable_side,
                                   symbolic_accelerations_with_frame_loads)
 from .compiled_planar_sensors import SymbolicKinematics
@@ -188,6 +189,9 @@ class CompiledKinematicLoops:
         Wall time of building, generating and compiling (or loading from the cache) [s].
     """
 
+    flags: tuple[str, ...] = STRAIGHT_LINE_FLAGS
+    """Compiler flags of the kernel (straight-line code, :data:`ctmm.codegen.STRAIGHT_LINE_FLAGS`)."""
+
     def __init__(self, model: Any, *, store_every: int = 1, rows: int = DEFAULT_ROWS, iterations: int = 3,
                  cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:
         reason = self._refusal(model)
@@ -200,7 +204,7 @@ class CompiledKinematicLoops:
         self.model = model
         self.parameters, self.state_size, name, parts = self._layout()
         description = describe((*parts, self.iterations))
-        options = {"cache_dir": cache_dir, "compiler": compiler}
+        options = {"cache_dir": cache_dir, "compiler": compiler, "flags": self.flags}
         if description is None:         # something in the tree cannot be described: key on the built functions
             step, extra = self._build()
             loop = compiled_time_loop(step, self.store_every, self.rows, name, extra=extra, **options)

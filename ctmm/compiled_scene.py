@@ -72,6 +72,7 @@ from .compiled_loops import ClosedLoops
 from .compiled_scene_key import (certified_hit, certified_sensors, described_time_loop, scene_description,
                                 sensor_check)
 from .compiled_station_loads import symbolic_terms_with_station_loads
+from .codegen import DEFAULT_FLAGS, STRAIGHT_LINE_FLAGS
 from .compiled_scene_fold import (FOLD_MIN_BODIES, fold_period, folded_acceleration, planar_fold_refusal,
                                   symbolic_inputs)
 from .compiled_parameters import (compile_refusal, compiled_actuators, constants_key, parameter_vector,
@@ -234,7 +235,8 @@ class CompiledScene:
                 not checked or certified_sensors(self.loops, extra[1]))
 
         loop = described_time_loop(description, build, certify if numbers == "inputs" else None, store_every,
-                                   self.rows, name, cache_dir=cache_dir, compiler=compiler)
+                                   self.rows, name, cache_dir=cache_dir, compiler=compiler,
+                                   flags=DEFAULT_FLAGS if self.period else STRAIGHT_LINE_FLAGS)
         self._acceleration, self._step, self._stride, self._blocks = loop.extra[0], loop.step, loop.stride, loop.blocks
         self._closed_rate = None
         if self.loops is not None and not self.loops.delayed:       # the closed loop's rate, on the library

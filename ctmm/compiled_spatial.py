@@ -51,6 +51,7 @@ import numpy as np
 from . import validation
 from .articulated import articulated_sweep
 from .errors import ModelError, SimulationError
+from .codegen import STRAIGHT_LINE_FLAGS
 from .generated_loop import compiled_time_loop, rk4_step_function, run_blocks
 from .ops import CASADI
 from .results import SimulationResult
@@ -79,10 +80,12 @@ time, fresh cache, load 2-6 on 2 cores): revolute chains N = 20 / 30 first compi
 FOLD_KINDS = ("revolute", "prismatic", "universal", "spherical")
 DEFAULT_ROWS = 64
 """Stored states per generated block call."""
-SPATIAL_FLAGS = ("-O1", "-shared", "-fPIC")
+SPATIAL_FLAGS = STRAIGHT_LINE_FLAGS
 """Compiler flags of spatial kernels: their straight-line C is long (about 700 instructions per revolute body
 and rate), and ``-O1`` compiles it 3.5x faster than ``-O2`` and runs it as fast (a 100-link revolute
-chain, one run on the 2-core machine: 50 s and 222 us per step against 172 s and 249 us)."""
+chain, one run on the 2-core machine: 50 s and 222 us per step against 172 s and 249 us).  The kernels of spatial
+kinematic loops (alone and in the loop driver) use them too: the R-U-S-R four-bar's RK4 with projection compiles in
+0.62x the gcc CPU of ``-O2`` at 0.93x its kernel CPU per step (``benchmarks/generated_flags.py``)."""
 FOLD_FLAGS = ("-O3", "-shared", "-fPIC")
 """Compiler flags of folded kernels (:func:`folded_velocity_rate`): their C holds one segment whatever N (about
 120 kB), so ``-O3`` costs a few tenths of a second more than ``-O1`` and runs the step about 25 % faster."""

@@ -216,3 +216,30 @@ def test_input_reads_go_through_one_pointer_per_input_and_zeros_for_an_absent_in
     assert library.f(arg, res, iw, w, 0) == 0
     assert np.max(np.abs(np.array(out[:]) - np.asarray(f(xv, [0.0, 0.0])).ravel())) <= 1e-15
     assert np.array(out[:])[2] == 1.0
+
+
+def test_a_time_loop_without_inputs_compiles_where_int_conversion_is_an_error(tmp_path):
+    """A time loop whose step has empty inputs ``u`` and ``p`` (every kernel of a model without actuators or
+    parameters): casadi writes ``casadi_copy(0, 0, 0+ i*0)`` for each empty column it repeats, an integer passed as a
+    pointer, which GCC 14 refuses (``-Wint-conversion`` is an error there; ``-Werror=int-conversion`` gives the same
+    here).  The copies of nothing are removed, so it compiles; the stride of two steps equals two steps of the
+    oscillator ``x' = v, v' = -x`` worked by hand (semi-implicit Euler)."""
+    ca = pytest.importorskip("casadi")
+    import numpy as np
+
+    from ctmm.generated_loop import time_loop_functions
+
+    y, u, h, p, t0, k = (ca.MX.sym(label, rows) for label, rows in (("y", 2), ("u", 0), ("h", 1), ("p", 0),
+                                                                    ("t0", 1), ("k", 1)))
+    velocity = y[1] - h * y[0]
+    step = ca.Function("step", [y, u, h, p, t0, k], [ca.vertcat(y[0] + h * velocity, velocity)])
+    stride, _, blocks = time_loop_functions(step, 2, 4)
+    assert "casadi_copy(0, 0, 0+" not in codegen.casadi_source([step, stride, *blocks], "no_inputs")
+    flags = ("-O0", "-Werror=int-conversion", "-shared", "-fPIC")
+    loaded = codegen.load_casadi([step, stride, *blocks], "no_inputs", cache_dir=tmp_path, flags=flags)
+    state, dt = np.array([1.0, 0.0]), 0.1
+    for _ in range(2):
+        rate = state[1] - dt * state[0]
+        state = np.array([state[0] + dt * rate, rate])
+    compiled = np.asarray(loaded[1]([1.0, 0.0], ca.DM(0, 1), dt, ca.DM(0, 1), 0.0, 0.0)).ravel()
+    assert np.max(np.abs(compiled - state)) <= 1e-15
