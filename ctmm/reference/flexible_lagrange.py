@@ -90,15 +90,20 @@ class _Beam:
         self.loads = [(float(ld.point[0]), ld.force_x, ld.force_y, ld.moment) for ld in beam.loads]
         self.distributed = beam.distributed_load
         self.hooks = beam.modal_forces
+        self._partials: dict = {}          # station xs [m] -> int_0^xs phi' phi'^T dx (:meth:`partial`)
 
     def partial(self, xs: float, q) -> np.ndarray:
-        """``int_0^xs phi' (phi' . q) dx`` on its own Gauss points."""
+        """``int_0^xs phi' (phi' . q) dx`` on its own Gauss points (96 on ``[0, xs]``): ``P(xs) q`` with the
+        matrix ``P(xs) = int_0^xs phi' phi'^T dx`` built once per station ``xs`` (the stations are the beam's
+        loads and ends, fixed)."""
         if xs <= 0.0:
             return np.zeros(self.nq)
-        xg, wg = np.polynomial.legendre.leggauss(96)
-        x = (xg + 1) / 2 * xs
-        d = self.shape(x, 1)
-        return (d * (wg / 2 * xs)) @ (d.T @ q)
+        matrix = self._partials.get(xs)
+        if matrix is None:
+            xg, wg = np.polynomial.legendre.leggauss(96)
+            d = self.shape((xg + 1) / 2 * xs, 1)
+            matrix = self._partials[xs] = (d * (wg / 2 * xs)) @ d.T
+        return matrix @ q
 
     def shape(self, x, d):
         xi = np.atleast_1d(np.asarray(x, float)) / self.L
