@@ -157,3 +157,29 @@ def test_the_dae_constraint_rows_are_consistent_with_their_positions():
         along = (dae.constraints(q + h * v, v)[1] - dae.constraints(q - h * v, v)[1]) / (2 * h)
         np.testing.assert_allclose(gamma, -along, atol=1e-7 * max(1.0, np.max(np.abs(gamma))))
         assert np.max(np.abs(phi)) > 0.1 and np.max(np.abs(gamma)) > 0.1          # off the manifold, moving
+
+
+@pytest.mark.parametrize("flexible", [False, True], ids=["rigid", "modal_coupler"])
+def test_one_evaluation_of_the_terms_for_several_inputs_equals_separate_sweeps(flexible):
+    """``solve_instant_inputs`` (the tree's body terms and hinge laws once, one sweep per inputs: the cut-load
+    responses of :meth:`KinematicLoopModel.solve_loads`) returns, for each inputs, exactly what
+    ``solve_instant`` returns on its own -- on a rigid tree and on one with a modal beam (cut forces on its frame
+    and modal coordinates)."""
+    from ctmm.planar.sweep import solve_instant, solve_instant_inputs
+    from ctmm.scenarios.four_bar import flexible_mechanism, flexible_start
+
+    loop = flexible_mechanism(80.0, n_modes=3) if flexible else four_bar(SPRING + DAMPER)
+    q0, v0 = flexible_start(loop) if flexible else start(loop)
+    q, v = np.array(q0) + 0.01, np.array(v0) - 0.2                  # off the start, coordinates and rates
+    inputs = [None, loop.cut_inputs(q, v, 0.1), loop.torque_inputs("h3") if not flexible else
+              loop.cut_inputs(q, v, 0.1, loop.cut_inputs(q0, v0, 0.0))]
+    together = solve_instant_inputs(loop.tree, q, v, 0.1, inputs)
+    assert len(together) == 3
+    for one, each in zip(together, inputs):
+        alone = solve_instant(loop.tree, q, v, 0.1, each)
+        for field in ("qddot", "body_acceleration", "joint_force", "hinge_acceleration"):
+            assert np.array_equal(getattr(one, field), getattr(alone, field)), field
+        assert one.modal_acceleration.keys() == alone.modal_acceleration.keys()
+        assert all(np.array_equal(one.modal_acceleration[k], alone.modal_acceleration[k])
+                   for k in one.modal_acceleration)
+    assert not np.array_equal(together[0].qddot, together[1].qddot)     # the inputs act

@@ -262,14 +262,24 @@ class FlexibleSystem:
 
     def solve(self, q, qdot, t: float = 0.0, inputs=None) -> FlexibleSolution:
         """Explicit forward dynamics (one sweep), with optional actuator ``inputs``."""
+        return self.solve_inputs(q, qdot, t, [inputs])[0]
+
+    def solve_inputs(self, q, qdot, t: float, inputs_list) -> list[FlexibleSolution]:
+        """:meth:`solve` at one state for each actuator inputs of ``inputs_list``: the body terms and hinge laws
+        evaluated once, one sweep per entry (each result the same as with those inputs alone)."""
         q, qdot = self.model.state(q, qdot)
         driven = self.model.driven(t)
         terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t, driven)
-        tau = self.apply_inputs(terms, theta, self.hinge_torques(q, qdot, theta, omega, t), inputs)
-        x, F, AO, alpha = self.sweep(terms, None, tau.tolist(), self.driven_alpha(t, driven))
-        A = np.array([xj[:3] for xj in x])
-        modal = {self.model.body_names[j]: x[j][3:].copy() for j in self.beam_data}
-        return FlexibleSolution(self.qddot(x), A, F, alpha, AO, modal)
+        torques, alpha_driven = self.hinge_torques(q, qdot, theta, omega, t), self.driven_alpha(t, driven)
+        solutions = []
+        for inputs in inputs_list:
+            own = [[M, h, ends] for M, h, ends in terms]      # apply_inputs replaces the h entries, never edits them
+            tau = self.apply_inputs(own, theta, torques, inputs)
+            x, F, AO, alpha = self.sweep(own, None, tau.tolist(), alpha_driven)
+            A = np.array([xj[:3] for xj in x])
+            modal = {self.model.body_names[j]: x[j][3:].copy() for j in self.beam_data}
+            solutions.append(FlexibleSolution(self.qddot(x), A, F, alpha, AO, modal))
+        return solutions
 
     def accelerations(self, q, qdot, t: float = 0.0, inputs=None, *, checked: bool = False) -> np.ndarray:
         """Generalised accelerations (one sweep), with optional actuator ``inputs``;

@@ -11,7 +11,8 @@ Mechanism (the boundary unknowns of the mixed transfer matrix method, seed 001 s
 The cut joint's force ``lambda_k`` (global axes [N]; on the child point ``+lambda_k``, on the parent point
 ``-lambda_k``) is the unknown that closes the transfer equations.  At fixed ``(q, qdot, t)`` the tree's
 O(n) articulated sweep (:func:`ctmm.planar.sweep.solve_instant`) is affine in applied forces, so one sweep
-without and ``2 m`` sweeps with unit boundary forces give the relative acceleration of the cut points as
+without and ``2 m`` sweeps with unit boundary forces (the tree's terms evaluated once for all of them,
+:func:`ctmm.planar.sweep.solve_instant_inputs`) give the relative acceleration of the cut points as
 ``a_rel = a_0 + G lambda`` (``G``: the ``2 m x 2 m`` boundary compliance).  The constraint at the
 acceleration level with Baumgarte stabilisation::
 
@@ -51,7 +52,7 @@ from .cut_joints import CutJoint
 from .cut_points import CutPoints
 from .model import PlanarModel
 from .ports import ActuatorInputs
-from .sweep import solve_instant
+from .sweep import solve_instant_inputs
 
 __all__ = ["CutJoint", "KinematicLoopModel", "KinematicLoopSimulation", "simulate_kinematic_loops"]
 
@@ -228,11 +229,10 @@ class KinematicLoopModel:
         q, qdot = self.tree.state(q, qdot)
         return self._cut_loads(self._points_at(q, qdot, t), self.solve_loads(q, qdot, t, inputs)[1], inputs)
 
-    def _solution(self, q, qdot, t, loads: np.ndarray, points: dict, inputs: ActuatorInputs | None = None):
-        """Tree solution with the cut loads ``loads`` (:meth:`_cut_loads`) and actuator ``inputs``: qddot and
-        ``Phi''`` of the cuts (``points``: :meth:`_points_at` at ``(q, qdot, t)``)."""
+    def _relative(self, solution, points: dict, t: float) -> np.ndarray:
+        """``Phi''`` of the cuts (relative accelerations of their sides; a driven cut also its angle's, less the
+        drive's) in the tree ``solution`` (``points``: :meth:`_points_at` at its state)."""
         sides = self.cut_points
-        solution = solve_instant(self.tree, q, qdot, t, self._cut_loads(points, loads, inputs))
         A, qdd = solution.body_acceleration, solution.qddot
         relative = []
         for cut, ((jp, ep), (jc, ec)) in zip(self.cuts, self._points):
@@ -240,7 +240,7 @@ class KinematicLoopModel:
             if cut.driven:      # angular accelerations of the sides (a deformable end: plus its slope's)
                 relative.append([sides.angular_acceleration(A, qdd, jc, ec) - sides.angular_acceleration(A, qdd, jp, ep)
                                  - float(cut.angle_acceleration(t))])
-        return qdd, np.concatenate(relative)
+        return np.concatenate(relative)
 
     def solve(self, q, qdot, t: float = 0.0, inputs: ActuatorInputs | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``(qddot, cut forces (n_cuts, 2))`` at ``(q, qdot, t)`` (module docstring), with the tree's actuator
@@ -263,16 +263,13 @@ class KinematicLoopModel:
                     ) -> tuple[np.ndarray, np.ndarray]:
         """``(qddot, cut loads)``: the boundary unknowns stacked as the rows of :meth:`constraints` (each cut's
         force [N], a driven cut's moment [N m] after it) solved from ``G lambda = -a_0 - 2 alpha Phi' - alpha^2 Phi``."""
-        zero = np.zeros(self._rows[-1])
         points = self._points_at(q, qdot, t)
-        qdd0, a0 = self._solution(q, qdot, t, zero, points, inputs)
-        G = np.empty((len(zero), len(zero)))
-        dqdd = np.empty((len(qdd0), len(zero)))
-        for k in range(len(zero)):
-            unit = zero.copy()
-            unit[k] = 1.0
-            qdd_k, a_k = self._solution(q, qdot, t, unit, points, inputs)
-            G[:, k], dqdd[:, k] = a_k - a0, qdd_k - qdd0
+        loads = np.vstack([np.zeros(self._rows[-1]), np.eye(self._rows[-1])])   # none, then each unit load
+        solutions = solve_instant_inputs(self.tree, q, qdot, t, [self._cut_loads(points, load, inputs)
+                                                                  for load in loads])   # the tree's terms once
+        qdd0, a0 = solutions[0].qddot, self._relative(solutions[0], points, t)
+        G = np.column_stack([self._relative(solution, points, t) - a0 for solution in solutions[1:]])
+        dqdd = np.column_stack([solution.qddot - qdd0 for solution in solutions[1:]])
         phi, phi_dot = self.constraints(q, qdot, t)
         alpha = self.baumgarte
         target = -a0 - 2.0 * alpha * phi_dot - alpha * alpha * phi

@@ -16,7 +16,7 @@ translational-spring hinges through :class:`ctmm.planar.body_forms.PlanarScene` 
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -138,11 +138,16 @@ def _checked_state(model: PlanarModel, q, qdot, t, inputs=None) -> tuple[np.ndar
     """Entry validation of the instantaneous solvers: model type, coordinate shapes, time, inputs."""
     if not isinstance(model, PlanarModel):
         raise ModelError(f"model must be a ctmm.planar.PlanarModel, got {model!r}")
+    _checked_inputs(inputs)
+    q, qdot = model.state(q, qdot)
+    return q, qdot, validation.finite("t", t)
+
+
+def _checked_inputs(inputs) -> None:
+    """:class:`ModelError` unless ``inputs`` is :class:`ctmm.planar.ports.ActuatorInputs` or None."""
     if inputs is not None and not isinstance(inputs, ActuatorInputs):
         raise ModelError(f"inputs must be ctmm.planar.ports.ActuatorInputs or None (build it with "
                          f"actuator_inputs(model, {{actuator name: value}})), got {inputs!r:.80}")
-    q, qdot = model.state(q, qdot)
-    return q, qdot, validation.finite("t", t)
 
 
 def _with_inputs(model: PlanarModel, theta, b: np.ndarray, tau: np.ndarray, inputs
@@ -174,18 +179,36 @@ def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0, inputs=None) -> I
     InstantaneousSolution
         Coordinate accelerations, body accelerations and joint forces.
     """
-    q, qdot, t = _checked_state(model, q, qdot, t, inputs)
+    return solve_instant_inputs(model, q, qdot, t, [inputs])[0]
+
+
+def solve_instant_inputs(model: PlanarModel, q, qdot, t: float, inputs_list: Sequence[ActuatorInputs | None]
+                         ) -> list[InstantaneousSolution]:
+    """:func:`solve_instant` at one state for each of several actuator inputs (e.g. a kinematic loop's cut loads
+    and their unit responses): the state's body terms and hinge laws are evaluated once, then one sweep per entry
+    of ``inputs_list`` (each solution the same as a call with those inputs alone)."""
+    inputs_list = list(inputs_list)
+    if not inputs_list:
+        return []
+    q, qdot, t = _checked_state(model, q, qdot, t, inputs_list[0])
+    for inputs in inputs_list[1:]:
+        _checked_inputs(inputs)
     if model.flexible_system is not None:
-        sol = model.flexible_system.solve(q, qdot, t, inputs)
-        return InstantaneousSolution(sol.qddot, sol.body_acceleration, sol.joint_force,
-                                     sol.hinge_acceleration, sol.modal_acceleration)
+        return [InstantaneousSolution(sol.qddot, sol.body_acceleration, sol.joint_force, sol.hinge_acceleration,
+                                      sol.modal_acceleration)
+                for sol in model.flexible_system.solve_inputs(q, qdot, t, inputs_list)]
     if len(model.bushing_bodies):
-        return _scene_solution(model, q, qdot, t, inputs)
+        return [_scene_solution(model, q, qdot, t, inputs) for inputs in inputs_list]
     theta, omega = model.body_angles(q, qdot, t)
-    K, b, E, _ = body_terms(model, theta, omega, t)
-    b, tau = _with_inputs(model, theta, b, hinge_torques(model, theta, omega, t), inputs)
-    A, F, alpha = model_sweep(model)(K, b, E, np.zeros(model.n_bodies), tau, _driven_alpha(model, t))
-    return InstantaneousSolution(coordinate_accelerations(model, A), A, F, alpha)
+    K, b0, E, _ = body_terms(model, theta, omega, t)
+    tau0, driven, kappa, sweep = hinge_torques(model, theta, omega, t), _driven_alpha(model, t), \
+        np.zeros(model.n_bodies), model_sweep(model)
+    solutions = []
+    for inputs in inputs_list:
+        b, tau = _with_inputs(model, theta, b0, tau0, inputs)
+        A, F, alpha = sweep(K, b, E, kappa, tau, driven)
+        solutions.append(InstantaneousSolution(coordinate_accelerations(model, A), A, F, alpha))
+    return solutions
 
 
 def _scene_solution(model: PlanarModel, q: np.ndarray, qdot: np.ndarray, t: float, inputs

@@ -90,15 +90,28 @@ class _Beam:
         self.loads = [(float(ld.point[0]), ld.force_x, ld.force_y, ld.moment) for ld in beam.loads]
         self.distributed = beam.distributed_load
         self.hooks = beam.modal_forces
+        self._partials: dict = {}          # station xs [m] -> int_0^xs phi' phi'^T dx (:meth:`partial`)
+        self._stations: dict = {}          # station xs [m] -> (phi, phi', psi) there (:meth:`station`)
 
     def partial(self, xs: float, q) -> np.ndarray:
-        """``int_0^xs phi' (phi' . q) dx`` on its own Gauss points."""
+        """``int_0^xs phi' (phi' . q) dx`` on its own Gauss points (96 on ``[0, xs]``): ``P(xs) q`` with the
+        matrix ``P(xs) = int_0^xs phi' phi'^T dx`` built once per station ``xs`` (the stations are the beam's
+        loads and ends, fixed)."""
         if xs <= 0.0:
             return np.zeros(self.nq)
-        xg, wg = np.polynomial.legendre.leggauss(96)
-        x = (xg + 1) / 2 * xs
-        d = self.shape(x, 1)
-        return (d * (wg / 2 * xs)) @ (d.T @ q)
+        matrix = self._partials.get(xs)
+        if matrix is None:
+            xg, wg = np.polynomial.legendre.leggauss(96)
+            d = self.shape((xg + 1) / 2 * xs, 1)
+            matrix = self._partials[xs] = (d * (wg / 2 * xs)) @ d.T
+        return matrix @ q
+
+    def station(self, xs: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(phi, phi', psi)`` at the station ``xs`` [m] (a load or an end: fixed), each per mode, evaluated once."""
+        values = self._stations.get(xs)
+        if values is None:
+            values = self._stations[xs] = (self.shape(xs, 0)[:, 0], self.shape(xs, 1)[:, 0], self.axial(xs, 0)[:, 0])
+        return values
 
     def shape(self, x, d):
         xi = np.atleast_1d(np.asarray(x, float)) / self.L
@@ -161,8 +174,7 @@ class FlexibleLagrange:
                     bm = self.beams[p]
                     xe = bm.ends[self.end_name[j]]
                     eta, etad = q[self.eta_index[p]], u[self.eta_index[p]]
-                    phi_e, dphi_e = bm.shape(xe, 0)[:, 0], bm.shape(xe, 1)[:, 0]
-                    psi_e = bm.axial(xe, 0)[:, 0]
+                    phi_e, dphi_e, psi_e = bm.station(xe)
                     rb = np.array([xe + psi_e @ eta[bm.nq:], phi_e @ eta[:bm.nq]])
                     rbd = np.array([psi_e @ etad[bm.nq:], phi_e @ etad[:bm.nq]])
                     dR = np.zeros((2, n))
@@ -280,8 +292,7 @@ class FlexibleLagrange:
                 for (xl, fx, fy, mz) in bm.loads:
                     force = np.array([float(fx(t)), float(fy(t))])
                     moment = float(mz(t))
-                    phi_l, dphi_l = bm.shape(xl, 0)[:, 0], bm.shape(xl, 1)[:, 0]
-                    psi_l = bm.axial(xl, 0)[:, 0]
+                    phi_l, dphi_l, psi_l = bm.station(xl)
                     rb = np.array([xl + psi_l @ eta[bm.nq:], phi_l @ eta[:bm.nq]])
                     rho = P["R"] @ rb
                     Jl = f["Jr"] + np.outer(_perp(rho), f["Jth"])
