@@ -321,7 +321,7 @@ def user_output(what: str, value: Any, size: int, *, time: float) -> np.ndarray:
         raise not_numbers()
     try:
         array = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:   # 10**400: no float holds it
         raise not_numbers() from exc
     if array.size != size:
         raise SimulationError(f"{what} returned {array.size} value(s) at t = {time:.6g} s; expected {size}",

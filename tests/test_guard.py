@@ -107,6 +107,8 @@ def test_user_code_is_named():
         user_output("controller 'c'", [np.nan], 1, time=0.0)
     with pytest.raises(SimulationError, match="expected 1 real"):
         user_output("controller 'c'", "abc", 1, time=0.0)
+    with pytest.raises(SimulationError, match="expected 1 real"):     # no float holds it (was a raw OverflowError)
+        user_output("controller 'c'", 10 ** 400, 1, time=0.25)
 
 
 def test_wilson_limit():
