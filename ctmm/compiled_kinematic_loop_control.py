@@ -222,6 +222,9 @@ class CompiledKinematicLoopControl:
         alone.
     iterations : int
         Gauss-Newton steps of the projection (as :class:`~ctmm.loop_integration.StepProjection`: 3).
+    start : (q, v), optional
+        The start state: a loop singular or neutral there is refused before anything is compiled; its loop state is
+        :attr:`start`.
 
     Attributes
     ----------
@@ -229,12 +232,14 @@ class CompiledKinematicLoopControl:
         The kernel's actuators (the loops', the inputs', the held ones), the order of ``u``.
     loops : ClosedLoops
     compile_time_s : float
+    start : ndarray or None
+        :meth:`ClosedLoops.initial_state` at the ``start`` state.
     """
 
     def __init__(self, controlled: ControlledModel, dt: float, *, inputs: Mapping[str, Any] | None = None,
                  references: Mapping[str, Any] | None = None, held: Sequence[str] = (), store_every: int = 1,
                  rows: int = DEFAULT_ROWS, cache_dir: str | os.PathLike | None = None, projection: bool = True,
-                 iterations: int = 3) -> None:
+                 iterations: int = 3, start: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         model = controlled.plant
         spatial = not isinstance(model, KinematicLoopModel)
         if spatial:
@@ -268,6 +273,11 @@ class CompiledKinematicLoopControl:
             raise ModelError(f"loops on the cut forces {list(self.loops.dependent.names)} beside co-simulated "
                              "controllers are not available (their held outputs make the forces jump at every sample); "
                              "sense them in a controller")
+        self.start = None
+        if start is not None:                # refusals at the start state (singular or neutral loops) before compiling
+            if self.loops.dependent is not None:
+                self.loops.dependent.check_start(self.loops, *start)
+            self.start = self.loops.initial_state(*start)
         step = _step(self.loops, self.closed, project if self.projection else None, self.nq, self.nv,
                      len(self.actuators), self.parameters.size)
         loop = compiled_time_loop(step, self.store_every, rows, f"kinematic_loop_control_{'spatial_' * spatial}"
@@ -433,13 +443,10 @@ def simulate_controlled_kinematic_loops_generated(system: Any, q0: Any, v0: Any,
     q, v = _start(model, q0, v0)
     n_steps = step_total(t_final, dt)
     h = t_final / n_steps
-    kernel = CompiledKinematicLoopControl(controlled, h, inputs=inputs, references=references,
-                                          store_every=store_every, rows=rows, cache_dir=cache_dir, projection=projection)
+    kernel = CompiledKinematicLoopControl(controlled, h, inputs=inputs, references=references, store_every=store_every,
+                                          rows=rows, cache_dir=cache_dir, projection=projection, start=(q, v))
     plant.check_step(q, v, h, validation.option("stability_check", stability_check, ("warn", "error", "ignore")))
-    loops, nq, nv, every = kernel.loops, kernel.nq, kernel.nv, kernel.store_every
-    if loops.dependent is not None:
-        loops.dependent.check_start(loops, q, v)
-    start = loops.initial_state(q, v)
+    loops, nq, nv, every, start = kernel.loops, kernel.nq, kernel.nv, kernel.store_every, kernel.start
     started = _time.perf_counter()
     states = kernel.run_states(start, np.zeros(len(kernel.actuators)), n_steps)
     wall = _time.perf_counter() - started

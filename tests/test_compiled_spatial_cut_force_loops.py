@@ -171,12 +171,14 @@ def test_the_generated_spatial_cut_force_is_affine_in_the_actuators_as_the_dae_m
         assert np.max(np.abs(F0[:, 0] + J @ np.array(w) - expected)) < 1e-12 * max(1.0, np.max(np.abs(expected))), w
 
 
-def test_generated_spatial_cut_force_loops_refuse_by_name():
+def test_generated_spatial_cut_force_loops_refuse_by_name(monkeypatch, tmp_path):
     """What the generated kernels do not cover is refused by name: a singular algebraic loop (``1 + K g = 0`` at the
     start, ``g`` from the numpy model's solve: the loop and its gain), saturation on a real-time loop, co-simulated
-    controllers beside one, a neutral delayed one, and a cut-force loop in a generated DT-TMM scheme."""
+    controllers beside one, a neutral delayed one, and a cut-force loop in a generated DT-TMM scheme; each before
+    anything is compiled (an empty kernel cache stays empty)."""
     from ctmm.control.static_gain import StaticGainController
 
+    monkeypatch.setenv("CTMM_CACHE", str(tmp_path))
     loop, q, v, sensor, actuator, _, _ = _pendulum()
     ports = with_feedback(loop, []).ports
     forces = [loop.cut_loads(q, loop.solve(q, v, 0.0, inputs)[1])[0][0][0]
@@ -197,6 +199,7 @@ def test_generated_spatial_cut_force_loops_refuse_by_name():
         ctmm.simulate(with_feedback(loop, [strong]), 0.01, STEP, x0=q, v0=v, compiled=True)
     with pytest.raises(ModelError, match="sensor 'hinge.force_x'.*DT-TMM schemes.*method='rk4'"):
         ctmm.simulate(with_feedback(loop, [delayed]), 0.01, STEP, x0=q, v0=v, compiled=True, method="newmark")
+    assert not list(tmp_path.rglob("*.so"))
 
 
 def test_generated_delayed_cut_force_loop_on_a_driven_tree_equals_the_numpy_driver():

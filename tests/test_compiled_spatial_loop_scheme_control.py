@@ -54,7 +54,7 @@ def four_bar():
 
 def test_pd_crank_equals_the_numpy_driver_and_converges_to_the_dae(four_bar):
     """A real-time PD on the crank towards 0.3 rad, Newmark at 4 / 2 ms over 0.04 s: every signal = the numpy
-    driver's to 1e-12; the bodies' rotations against the DAE with the same law (crank angle about world x from its
+    driver's to 1e-12 (at 4 ms); the bodies' rotations against the DAE with the same law (crank angle about world x from its
     rotation, rate from its angular velocity) at order two (1 ms: 2.9e-6 rad, ratio 4.00; the law with the wrong sign
     is 0.75 rad away); drift at round-off after every step."""
     loop, q, v = four_bar
@@ -72,7 +72,8 @@ def test_pd_crank_equals_the_numpy_driver_and_converges_to_the_dae(four_bar):
     errors = []
     for dt in (4e-3, 2e-3):
         generated = ctmm.simulate(system, 0.04, dt, compiled=True, **options)
-        _equal(generated, _numpy(system, 0.04, dt, **options))
+        if dt == 4e-3:                                   # the numpy driver at one step: the same path at both
+            _equal(generated, _numpy(system, 0.04, dt, **options))
         assert generated.info["loops"] == {"pd": "real-time"} and generated["drift"].max() <= 1e-12
         run = type("Run", (), {"t": generated.time, "q": np.array([generated[n] for n in loop.tree.coordinates]).T,
                                "v": np.array([generated[n] for n in loop.tree.velocities]).T})
@@ -142,7 +143,7 @@ def _zero_order_hold_dae_error(loop, run, sample_time: float, law) -> float:
 def test_cosimulated_pid_equals_the_numpy_driver_and_converges_to_the_dae(four_bar):
     """A sampled P controller (``ctmm.controllers.PID``, kp = 20 N m/rad towards 0.3 rad every 8 ms) on the crank,
     Newmark at 4 / 2 ms: every signal = the numpy loop driver's to its Newton tolerance (1e-10, as the other
-    co-simulated schemes; measured 6e-14); against the DAE with the same zero-order-hold law at
+    co-simulated schemes; measured 6e-14; at 4 ms); against the DAE with the same zero-order-hold law at
     order two."""
     from ctmm.controllers import PID
 
@@ -153,12 +154,13 @@ def test_cosimulated_pid_equals_the_numpy_driver_and_converges_to_the_dae(four_b
     errors = []
     for dt in (4e-3, 2e-3):
         generated = ctmm.simulate(loop, 0.04, dt, compiled=True, **options)
-        plain = ctmm.simulate(loop, 0.04, dt, **options)
         assert generated.info["method"] == "dt-tmm-generated/Newmark" and generated.info["intervals"] == 5
-        assert sorted(generated.time_signals()) == sorted(plain.time_signals())
-        for name in plain.time_signals():
-            scale = max(1.0, float(np.max(np.abs(plain[name]))))
-            assert np.max(np.abs(generated[name] - plain[name])) <= 1e-10 * scale, name
+        if dt == 4e-3:                                   # the numpy driver at one step: the same path at both
+            plain = ctmm.simulate(loop, 0.04, dt, **options)
+            assert sorted(generated.time_signals()) == sorted(plain.time_signals())
+            for name in plain.time_signals():
+                scale = max(1.0, float(np.max(np.abs(plain[name]))))
+                assert np.max(np.abs(generated[name] - plain[name])) <= 1e-10 * scale, name
         run = type("Run", (), {"t": generated.time, "q": np.array([generated[n] for n in loop.tree.coordinates]).T,
                                "v": np.array([generated[n] for n in loop.tree.velocities]).T})
         errors.append(_zero_order_hold_dae_error(loop, run, 8e-3, lambda angle: KP * (TARGET - angle)))

@@ -38,6 +38,8 @@ import numpy as np
 import scipy.integrate
 import scipy.linalg
 
+from .spatial_kinematics import cross
+
 __all__ = ["DaeBody", "DaeJoint", "SpatialLoopDAE"]
 
 
@@ -76,7 +78,7 @@ def _rotation_vector(phi: np.ndarray) -> np.ndarray:
 
 def _normal_to(a: np.ndarray) -> np.ndarray:
     """A unit vector normal to the unit vector ``a``: ``a x e_k`` with ``e_k`` the axis least aligned with ``a``."""
-    b = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
+    b = cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
     return b / np.linalg.norm(b)
 
 
@@ -120,7 +122,7 @@ class DaeJoint:
         for axis, normal in ((u, self.child_normal), (self.parent_axis, self.parent_normal)):
             a = np.asarray(axis, float) / np.linalg.norm(axis)
             n = _normal_to(a) if normal is None else np.asarray(normal, float) / np.linalg.norm(normal)
-            triads.append((a, n, np.cross(a, n)))
+            triads.append((a, n, cross(a, n)))
         c, p = triads
         return [(c[1], p[2]), (c[2], p[0]), (c[0], p[1])]
 
@@ -132,7 +134,7 @@ class DaeJoint:
         if self.kind == "ball":
             return []
         b1 = _normal_to(a)
-        return [b1, np.cross(a, b1)]
+        return [b1, cross(a, b1)]
 
 
 class SpatialLoopDAE:
@@ -179,7 +181,7 @@ class SpatialLoopDAE:
             if body < 0:
                 return np.asarray(point, float), np.zeros(3), None, np.zeros(3), np.zeros(3)
             r = R[body] @ point
-            return x[body] + r, v[body] + np.cross(w[body], r), r, w[body], np.cross(w[body], np.cross(w[body], r))
+            return x[body] + r, v[body] + cross(w[body], r), r, w[body], cross(w[body], cross(w[body], r))
 
         for joint in self.joints:
             xp, vp, rp, wp, gp = side(joint.parent, joint.parent_point)
@@ -199,22 +201,22 @@ class SpatialLoopDAE:
                     b = b_local if joint.parent < 0 else R[joint.parent] @ b_local
                     row = (b @ block)[None]          # (d . b)' = (v_c - v_p) . b + d . (w_p x b)
                     if joint.parent >= 0:
-                        row[0, 6 * joint.parent + 3:6 * joint.parent + 6] += np.cross(b, d)
+                        row[0, 6 * joint.parent + 3:6 * joint.parent + 6] += cross(b, d)
                     phi.append(np.array([d @ b]))
                     J.append(row)
-                    gamma.append(np.array([(gc - gp) @ b + 2 * (vc - vp) @ np.cross(wp, b)
-                                           + d @ np.cross(wp, np.cross(wp, b))]))
+                    gamma.append(np.array([(gc - gp) @ b + 2 * (vc - vp) @ cross(wp, b)
+                                           + d @ cross(wp, cross(wp, b))]))
             for u_local, b_local in joint.pairs():
                 u = R[joint.child] @ u_local
                 b = b_local if joint.parent < 0 else R[joint.parent] @ b_local
-                nvec = np.cross(u, b)
+                nvec = cross(u, b)
                 row = np.zeros((1, 6 * n))
                 row[0, 6 * joint.child + 3:6 * joint.child + 6] = nvec
                 if joint.parent >= 0:
                     row[0, 6 * joint.parent + 3:6 * joint.parent + 6] -= nvec
                 phi.append(np.array([u @ b]))
                 J.append(row)
-                gamma.append(np.array([(wc - wp) @ (np.cross(np.cross(wc, u), b) + np.cross(u, np.cross(wp, b)))]))
+                gamma.append(np.array([(wc - wp) @ (cross(cross(wc, u), b) + cross(u, cross(wp, b)))]))
         return np.concatenate(phi), np.vstack(J), np.concatenate(gamma)
 
     def velocities(self, y: np.ndarray) -> np.ndarray:
@@ -240,7 +242,7 @@ class SpatialLoopDAE:
         for i, body in enumerate(self.bodies):
             inertia = M[6 * i + 3:6 * i + 6, 6 * i + 3:6 * i + 6]
             f[6 * i:6 * i + 3] = body.mass * self.gravity
-            f[6 * i + 3:6 * i + 6] = -np.cross(w[i], inertia @ w[i])
+            f[6 * i + 3:6 * i + 6] = -cross(w[i], inertia @ w[i])
         for i, load in (torques or {}).items():
             load = np.asarray(load, float)
             if load.shape == (6,):

@@ -112,10 +112,9 @@ class SpatialLoopPlant:
         moments = np.zeros((len(t), len(model.cuts), 3))
         drift, rate = np.zeros(len(t)), np.zeros(len(t))
         for k in range(len(t)):
-            loads = model.cut_loads(q[k], model.solve(q[k], v[k], float(t[k]), rows[k])[1], float(t[k]))
+            phi, phi_dot, loads, law = model.stored_row(q[k], v[k], float(t[k]), rows[k])
             forces[k], moments[k] = [f for f, _ in loads], [m for _, m in loads]
-            moments[k] += model.law_moments(q[k], v[k], float(t[k]))     # a spherical cut's law
-            phi, phi_dot = model.constraints(q[k], v[k], float(t[k]))
+            moments[k] += law                                            # a spherical cut's law
             drift[k], rate[k] = np.max(np.abs(phi)), np.max(np.abs(phi_dot))
         add_cut_signals(model, signals, units, forces, moments, drift, rate)
         return signals, units

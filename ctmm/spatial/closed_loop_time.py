@@ -143,12 +143,11 @@ def _history(model: SpatialKinematicLoopModel, t_out: np.ndarray, q: np.ndarray,
     forces, moments, drift, drift_rate = [], [], [], []
     for t, q_k, v_k in zip(t_out, q, v):
         t = float(t)
-        phi, phi_dot = model.constraints(q_k, v_k, t)
+        phi, phi_dot, loads, law = model.stored_row(q_k, v_k, t, inputs)
         drift.append(np.max(np.abs(phi)))
         drift_rate.append(np.max(np.abs(phi_dot)))
-        loads = model.cut_loads(q_k, model.solve(q_k, v_k, t, inputs)[1], t)
         forces.append([f for f, _ in loads])
-        moments.append(np.array([m for _, m in loads]) + model.law_moments(q_k, v_k, t))
+        moments.append(np.array([m for _, m in loads]) + law)
     return SpatialLoopSimulation(model, np.asarray(t_out), q, v, np.array(forces), np.array(moments), np.array(drift),
                                  np.array(drift_rate), method, wall, evaluations)
 

@@ -329,7 +329,9 @@ class SpatialKinematicLoopModel:
     def law_moments(self, q: Any, v: Any, t: float = 0.0) -> np.ndarray:
         """``(n_cuts, 3)``: the moment [N m] (world axes) of each spherical cut's law on its child
         (:func:`~ctmm.spatial.closed_loop_cuts.spherical_law_moment`; zero without a law and for the other kinds)."""
-        bodies = self._bodies(np.asarray(q, float), np.asarray(v, float), t)
+        return self._law_moments(self._bodies(np.asarray(q, float), np.asarray(v, float), t), t)
+
+    def _law_moments(self, bodies: list, t: float) -> np.ndarray:
         out = np.zeros((len(self.cuts), 3))
         for k, (cut, (parent, child)) in enumerate(zip(self.cuts, self._sides)):
             if cut.kind == "spherical" and cut.law is not None:
@@ -444,6 +446,11 @@ class SpatialKinematicLoopModel:
             A singular boundary compliance (a singular configuration of the loop, or redundant cut rows), naming
             the time and the first cut joint.
         """
+        return self._solution(q, v, t, inputs)[1:]
+
+    def _solution(self, q: Any, v: Any, t: float, inputs: Mapping[str, Any] | None
+                  ) -> tuple[list, np.ndarray, np.ndarray]:
+        """Body states (:meth:`_bodies`) and :meth:`solve`'s ``(v', lambda)`` from one pass of the tree's terms."""
         bodies, rates, points = self._sweep(np.asarray(q, float), np.asarray(v, float), t, inputs)
         second = self._accelerations(bodies, points, rates, t)
         G = (second[1:] - second[0]).T
@@ -456,14 +463,16 @@ class SpatialKinematicLoopModel:
                                   "s (e.g. a revolute cut closing a planar loop: use a spherical cut there)", time=t,
                                   element=self.cuts[0].name)
         lam = np.linalg.solve(G, target)
-        return rates[0] + (rates[1:] - rates[0]).T @ lam, lam
+        return bodies, rates[0] + (rates[1:] - rates[0]).T @ lam, lam
 
     def cut_loads(self, q: Any, lam: np.ndarray, t: float = 0.0) -> list[tuple[np.ndarray, np.ndarray]]:
         """Per cut: ``(force, moment)`` on the child [N, N m], world axes, from the unknowns ``lam``
         (:meth:`solve`) at ``q`` (a spherical cut's moment is zero; the parent carries their opposites at the child
         point)."""
-        q = np.asarray(q, float)
-        bodies = self._bodies(q, np.zeros(self.tree.n_velocities), t)
+        return self._cut_loads(self._bodies(np.asarray(q, float), np.zeros(self.tree.n_velocities), t), lam)
+
+    def _cut_loads(self, bodies: list, lam: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """:meth:`cut_loads` from the body states of any velocity at ``q`` (only their rotations are read)."""
         out, row = [], 0
         for cut, (parent, child), frame in zip(self.cuts, self._sides, self._frames):
             unit = self._unit_wrenches(bodies, cut, parent, child, frame)
@@ -471,6 +480,14 @@ class SpatialKinematicLoopModel:
             out.append((wrench[:3], wrench[3:]))
             row += len(unit)
         return out
+
+    def stored_row(self, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, list[tuple[np.ndarray, np.ndarray]], np.ndarray]:
+        """A run's row at ``(q, v, t)`` from one pass of the tree's terms: :meth:`constraints`, :meth:`cut_loads` of
+        :meth:`solve` with ``inputs`` and :meth:`law_moments`."""
+        bodies, _, lam = self._solution(q, v, t, inputs)
+        phi, rate = self._rows(bodies, t)
+        return phi[0], rate[0], self._cut_loads(bodies, lam), self._law_moments(bodies, t)
 
     def cut_inputs(self, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | SpatialInputs | None = None
                    ) -> SpatialInputs:
@@ -480,16 +497,14 @@ class SpatialKinematicLoopModel:
         together with ``inputs``: with them the tree's own sweep (e.g. an iterate of a DT-TMM scheme,
         :func:`ctmm.spatial.implicit.simulate_spatial_implicit` ``input_map``) moves as the closed loop."""
         q, v = np.asarray(q, float), np.asarray(v, float)
-        lam = self.solve(q, v, t, inputs)[1]
+        bodies, _, lam = self._solution(q, v, t, inputs)    # one pass: the loads read positions and rotations only
         joint = dict(inputs.joint) if isinstance(inputs, SpatialInputs) else dict(inputs or {})
         wrenches: dict[int, list] = {}
         if isinstance(inputs, SpatialInputs):
             for body, entries in inputs.wrenches.items():
                 wrenches[body] = list(entries)
-        laws = self._law_wrenches(self._bodies(q, v, t), t,
-                                  inputs.cut_actuation if isinstance(inputs, CutActuatedInputs) else None)
-        bodies = self._bodies(q, np.zeros(self.tree.n_velocities), t)
-        for (parent, child), frame, (force, moment), law in zip(self._sides, self._frames, self.cut_loads(q, lam, t),
+        laws = self._law_wrenches(bodies, t, inputs.cut_actuation if isinstance(inputs, CutActuatedInputs) else None)
+        for (parent, child), frame, (force, moment), law in zip(self._sides, self._frames, self._cut_loads(bodies, lam),
                                                                 laws):
             load = (np.concatenate([force, moment]) + (0.0 if law is None else law)).reshape(1, 6, 1)
             wrenches.setdefault(child.body, []).append((child.point, load))
