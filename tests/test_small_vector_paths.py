@@ -1,0 +1,80 @@
+"""The numpy fast paths of one state (B = 1) in :mod:`ctmm.ops`, :mod:`ctmm.spatial.frames` and the references' cross
+product (:mod:`ctmm.reference.spatial_kinematics`) give the values of
+independent formulas: ``np.block`` for a tiling grid of blocks, ``np.cross`` for the cross product, the explicit
+``[v]x``, scipy's rotation of an axis and an angle; grids that do not tile (an entry broadcast into a wider slot,
+numbers, mixed batches or dtypes) keep the general assembly, and the cached axis terms cannot be written."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from ctmm.ops import CASADI, NUMPY
+from ctmm.spatial.frames import axis_rotation, cross, skew
+
+RNG = np.random.default_rng(7)
+
+
+@pytest.mark.parametrize("batch", [(1,), (4,), ()])
+@pytest.mark.parametrize("dtype", [float, complex])
+def test_a_tiling_grid_is_np_block(batch, dtype):
+    def random(rows, columns):
+        value = RNG.normal(size=batch + (rows, columns))
+        return (value + 1j * RNG.normal(size=value.shape)).astype(dtype) if dtype is complex else value
+
+    grid = [[random(3, 3), random(3, 2), random(3, 1)], [random(2, 3), random(2, 2), random(2, 1)]]
+    got = NUMPY.block(grid)
+    assert got.dtype == np.dtype(dtype)
+    np.testing.assert_array_equal(got, np.block(grid))
+
+
+def test_grids_that_do_not_tile_keep_the_general_assembly():
+    a, b = RNG.normal(size=(1, 3, 3)), RNG.normal(size=(1, 3, 3))
+    scalar = RNG.normal(size=(1, 1, 1))
+    # a 1 x 1 entry broadcasts into the 3 x 3 slot of its row and column
+    np.testing.assert_array_equal(NUMPY.block([[a, scalar], [b, a]]),
+                                  np.block([[a, np.broadcast_to(scalar, (1, 3, 3))], [b, a]]))
+    # Python numbers and a batch-1 constant with a batch-4 entry
+    batched = RNG.normal(size=(4, 3, 3))
+    np.testing.assert_array_equal(NUMPY.block([[batched, a], [0.0, np.eye(3)[None]]]),
+                                  np.block([[batched, np.broadcast_to(a, (4, 3, 3))],
+                                            [np.zeros((4, 3, 3)), np.broadcast_to(np.eye(3), (4, 3, 3))]]))
+    # mixed dtypes: the result type of both
+    complex_block = a * (1 + 1j)
+    got = NUMPY.block([[a, complex_block], [complex_block, a]])
+    assert got.dtype == np.complex128
+    np.testing.assert_array_equal(got, np.block([[a, complex_block], [complex_block, a]]))
+
+
+@pytest.mark.parametrize("batch", [1, 5])
+def test_cross_and_skew_are_the_cross_product(batch):
+    for dtype in (float, complex):
+        a = RNG.normal(size=(batch, 3, 1)).astype(dtype)
+        b = RNG.normal(size=(batch, 3, 1)).astype(dtype)
+        expected = np.cross(a[..., 0], b[..., 0])[..., None]
+        np.testing.assert_allclose(cross(NUMPY, a, b), expected, rtol=1e-15, atol=1e-15)
+        np.testing.assert_allclose(skew(NUMPY, a) @ b, expected, rtol=1e-15, atol=1e-15)
+        x, y, z = a[:, 0, 0], a[:, 1, 0], a[:, 2, 0]
+        zero = np.zeros_like(x)
+        np.testing.assert_array_equal(skew(NUMPY, a), np.stack([np.stack([zero, -z, y], -1),
+                                                                np.stack([z, zero, -x], -1),
+                                                                np.stack([-y, x, zero], -1)], -2))
+    a, b = RNG.normal(size=(1, 3, 1)), RNG.normal(size=(batch, 3, 1))     # a constant against a batch
+    np.testing.assert_allclose(cross(NUMPY, a, b), np.cross(a[..., 0], b[..., 0])[..., None], rtol=1e-15, atol=1e-15)
+
+
+def test_axis_rotation_is_the_rotation_of_axis_and_angle_and_its_cached_terms_are_read_only():
+    axis = np.array([1.0, -2.0, 0.5]) / np.linalg.norm([1.0, -2.0, 0.5])
+    angles = RNG.normal(size=(3, 1, 1))
+    got = axis_rotation(NUMPY, axis, angles)
+    expected = Rotation.from_rotvec(angles[:, 0, 0, None] * axis).as_matrix()
+    np.testing.assert_allclose(got, expected, atol=1e-15)
+    np.testing.assert_allclose(axis_rotation(NUMPY, list(axis), angles[:1]), expected[:1], atol=1e-15)
+    got[...] = 0.0                                 # the result is the caller's own array ...
+    np.testing.assert_allclose(axis_rotation(NUMPY, axis, angles), expected, atol=1e-15)   # ... the cache unchanged
+    import casadi
+
+    angle = casadi.SX.sym("angle")
+    symbolic = casadi.Function("R", [angle], [axis_rotation(CASADI, axis, angle)])
+    np.testing.assert_allclose(np.array(symbolic(angles[1, 0, 0])), expected[1], atol=1e-15)
+
