@@ -78,3 +78,17 @@ def test_axis_rotation_is_the_rotation_of_axis_and_angle_and_its_cached_terms_ar
     symbolic = casadi.Function("R", [angle], [axis_rotation(CASADI, axis, angle)])
     np.testing.assert_allclose(np.array(symbolic(angles[1, 0, 0])), expected[1], atol=1e-15)
 
+
+@pytest.mark.parametrize("shapes", [((3,), (3,)), ((5, 3), (3,)), ((3,), (4, 3)), ((2, 4, 3), (2, 1, 3)), ((0, 3), (3,))])
+@pytest.mark.parametrize("dtype", [float, complex])
+def test_the_reference_cross_product_is_np_cross(shapes, dtype):
+    """The independent references' cross product (``ctmm.reference.spatial_kinematics.cross``): the values and
+    dtype of ``np.cross`` for one pair, broadcast stacks and complex steps."""
+    from ctmm.reference.spatial_kinematics import cross as reference_cross
+
+    a, b = (RNG.normal(size=shape).astype(dtype) for shape in shapes)
+    if dtype is complex:
+        a, b = a + 1j * RNG.normal(size=a.shape), b + 1e-20j
+    got = reference_cross(a, b)
+    assert got.dtype == np.cross(a, b).dtype
+    np.testing.assert_array_equal(got, np.cross(a, b))

@@ -58,7 +58,7 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import ModelError, SimulationError
-from .spatial_kinematics import (JOINT_SIZES, Kinematics, exp_quaternion, kinematics,
+from .spatial_kinematics import (JOINT_SIZES, Kinematics, cross, exp_quaternion, kinematics,
                                  point_jacobian, quaternion_matrix, quaternion_product,
                                  rotation_vector)
 
@@ -286,7 +286,7 @@ def bias_forces(tree: SpatialTree, q: np.ndarray, v: np.ndarray, t: float = 0.0,
     mass = np.array([b.mass for b in tree.bodies])
     inertia = _world_inertia(tree, kin)
     spin = np.einsum("bij,bj->bi", inertia, kin.omega)
-    moment = np.einsum("bij,bj->bi", inertia, kin.alpha_bias) + np.cross(kin.omega, spin)
+    moment = np.einsum("bij,bj->bi", inertia, kin.alpha_bias) + cross(kin.omega, spin)
     force = mass[:, None] * (kin.com_bias - tree.gravity)
     h = (np.einsum("bin,bi->n", kin.jacobian_com, force)
          + np.einsum("bin,bi->n", kin.jacobian_angular, moment))
@@ -331,7 +331,7 @@ def joint_reactions(tree: SpatialTree, q: np.ndarray, v: np.ndarray, vdot: np.nd
     alpha = kin.alpha_bias + kin.jacobian_angular @ vdot
     force = mass[:, None] * (acc_c - tree.gravity)
     moment = np.einsum("bij,bj->bi", inertia, alpha) \
-        + np.cross(kin.omega, np.einsum("bij,bj->bi", inertia, kin.omega))
+        + cross(kin.omega, np.einsum("bij,bj->bi", inertia, kin.omega))
     applied = [(load.body, kin.origin[load.body] + kin.rotation[load.body] @ load.point,
                 *load.at(t)) for load in tree.loads]
     out = np.zeros((len(tree.bodies), 6))
@@ -339,11 +339,11 @@ def joint_reactions(tree: SpatialTree, q: np.ndarray, v: np.ndarray, vdot: np.nd
         inside = tree.subtree(i)
         o = kin.origin[i]
         total_f = force[inside].sum(axis=0)
-        total_m = (np.cross(kin.com[inside] - o, force[inside]) + moment[inside]).sum(axis=0)
+        total_m = (cross(kin.com[inside] - o, force[inside]) + moment[inside]).sum(axis=0)
         for body, point, f, m in applied:
             if body in inside:
                 total_f = total_f - f
-                total_m = total_m - np.cross(point - o, f) - m
+                total_m = total_m - cross(point - o, f) - m
         out[i] = np.concatenate([kin.rotation[i].T @ total_f, kin.rotation[i].T @ total_m])
     return out
 
