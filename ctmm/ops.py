@@ -156,7 +156,7 @@ class NumpyOps:
 
     @staticmethod
     def transpose(a: Any) -> np.ndarray:
-        return np.swapaxes(a, -1, -2)
+        return a.swapaxes(-1, -2) if type(a) is np.ndarray else np.swapaxes(a, -1, -2)
 
     @staticmethod
     def sub(a: Any, rows: slice, columns: slice) -> np.ndarray:
