@@ -92,3 +92,20 @@ def test_the_reference_cross_product_is_np_cross(shapes, dtype):
     got = reference_cross(a, b)
     assert got.dtype == np.cross(a, b).dtype
     np.testing.assert_array_equal(got, np.cross(a, b))
+
+
+@pytest.mark.parametrize("batch", [1, 3])
+def test_quaternion_rotation_and_rate_are_scipys(batch):
+    """The rotation of an unnormalised quaternion (scalar first) is scipy's of the normalised one, and
+    ``q_dot = 1/2 q (x) (0, omega)`` is the Hamilton product written out by scipy's composition's derivative."""
+    from ctmm.spatial.frames import quaternion_rate, quaternion_rotation
+
+    q = RNG.normal(size=(batch, 4)) * 1.7
+    got = quaternion_rotation(NUMPY, *(q[:, i, None, None] for i in range(4)))
+    expected = Rotation.from_quat(np.c_[q[:, 1:], q[:, :1]]).as_matrix()
+    np.testing.assert_allclose(got, expected, atol=2e-15)
+    omega, h = RNG.normal(size=(batch, 3)), 1e-7
+    later = (Rotation.from_quat(np.c_[q[:, 1:], q[:, :1]]) * Rotation.from_rotvec(h * omega)).as_quat()
+    later = np.c_[later[:, 3:], later[:, :3]] * np.linalg.norm(q, axis=1, keepdims=True)
+    later *= np.sign(np.sum(later * q, axis=1, keepdims=True))          # the same sign as q
+    np.testing.assert_allclose(quaternion_rate(q, omega), (later - q) / h, atol=1e-6 * np.abs(q).max())

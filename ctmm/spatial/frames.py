@@ -91,6 +91,13 @@ def quaternion_rotation(ops: Ops, w: Any, x: Any, y: Any, z: Any) -> Any:
     """Rotation matrix of the quaternion ``(w, x, y, z)`` divided by its norm (any non-zero quaternion)."""
     n2 = w * w + x * x + y * y + z * z
     if ops.name == "numpy":
+        parts = (w, x, y, z, n2)
+        if all(type(c) is np.ndarray and c.shape == (1, 1, 1) and c.dtype == np.float64 for c in parts):
+            w, x, y, z, n2 = (c.item() for c in parts)              # one state: the same operations on floats
+            R = np.array(((w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)),
+                          (2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)),
+                          (2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z)))
+            return (R / n2).reshape(1, 3, 3)
         w, x, y, z = np.broadcast_arrays(*(np.asarray(c)[:, 0, 0] for c in (w, x, y, z)))
         n2 = np.asarray(n2)[:, 0, 0]
         R = np.stack([np.stack([w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
@@ -106,8 +113,8 @@ def quaternion_rotation(ops: Ops, w: Any, x: Any, y: Any, z: Any) -> Any:
 def quaternion_rate(q: np.ndarray, omega: np.ndarray) -> np.ndarray:
     """``q_dot = 1/2 q (x) (0, omega)`` for quaternions ``q (..., 4)`` and child-axes angular velocities
     ``omega (..., 3)`` [rad/s] (numpy)."""
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    p, r, s = np.moveaxis(omega, -1, 0)
+    w, x, y, z = (q[..., i] for i in range(4))
+    p, r, s = (omega[..., i] for i in range(3))
     return 0.5 * np.stack([-x * p - y * r - z * s, w * p + y * s - z * r, w * r + z * p - x * s,
                            w * s + x * r - y * p], axis=-1)
 
