@@ -55,6 +55,26 @@ class Ops(Protocol):
         """``(rows, columns)`` of a matrix (without the batch axis)."""
 
 
+def _tiles(rows: Sequence[Sequence[Any]]) -> bool:
+    """Whether a grid of blocks is numpy arrays of one dtype, rank and batch whose heights agree along each row
+    and widths along each column: then the blocks tile the matrix and concatenation is :meth:`NumpyOps.block`
+    (no entry broadcasts into a larger slot)."""
+    first = rows[0][0]
+    if type(first) is not np.ndarray or first.ndim < 2:
+        return False
+    ndim, dtype, lead = first.ndim, first.dtype, first.shape[:-2]
+    widths = [e.shape[-1] if type(e) is np.ndarray else -1 for e in rows[0]]
+    for row in rows:
+        if len(row) != len(widths) or type(row[0]) is not np.ndarray:
+            return False
+        height = row[0].shape[-2]
+        for e, width in zip(row, widths):
+            if (type(e) is not np.ndarray or e.ndim != ndim or e.dtype != dtype or e.shape[:-2] != lead
+                    or e.shape[-1] != width or e.shape[-2] != height):
+                return False
+    return True
+
+
 class NumpyOps:
     """:class:`Ops` on numpy arrays of shape ``(B, rows, columns)``; Python numbers are ``(1, 1, 1)``."""
 
@@ -92,6 +112,8 @@ class NumpyOps:
                         break
                 else:
                     return np.concatenate(parts, axis=axis)
+        elif _tiles(rows):                          # a grid of equal-kind arrays that tile: no broadcasting
+            return np.concatenate([np.concatenate(row, axis=-1) for row in rows], axis=-2)
         if all(isinstance(e, _SCALARS) for row in rows for e in row):     # numbers only: one call, B = 1
             out = np.array(rows)
             return (out if out.dtype.kind in "fc" else out.astype(float))[None]
@@ -134,7 +156,7 @@ class NumpyOps:
 
     @staticmethod
     def transpose(a: Any) -> np.ndarray:
-        return np.swapaxes(a, -1, -2)
+        return a.swapaxes(-1, -2) if type(a) is np.ndarray else np.swapaxes(a, -1, -2)
 
     @staticmethod
     def sub(a: Any, rows: slice, columns: slice) -> np.ndarray:

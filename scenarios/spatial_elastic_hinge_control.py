@@ -98,7 +98,11 @@ def to_reference(q: np.ndarray) -> np.ndarray:
 
 def reference_theta_z(tree: ref.SpatialTree, q: np.ndarray) -> float:
     """x-y-z angle ``a_z`` of ``R = Rx Ry Rz``: ``R[0,1] = -cos a_y sin a_z``, ``R[0,0] = cos a_y cos a_z``."""
-    rotation = kinematics(tree, q, np.zeros(tree.nv)).rotation[0]
+    return theta_z(kinematics(tree, q, np.zeros(tree.nv)).rotation[0])
+
+
+def theta_z(rotation: np.ndarray) -> float:
+    """x-y-z angle ``a_z`` [rad] of a rotation matrix ``R = Rx Ry Rz`` (:func:`reference_theta_z`)."""
     return float(np.arctan2(-rotation[0, 1], rotation[0, 0]))
 
 
@@ -112,7 +116,7 @@ def reference_law(tree: ref.SpatialTree, controlled: bool):
         tau = -k @ np.r_[rotation.T @ q[:3], 2.0 * quat[3] * quat[:3]] - c @ v
         if controlled:
             kin = kinematics(tree, q, v)
-            moment = np.array([0.0, 0.0, -(KP * reference_theta_z(tree, q) + KD * kin.omega[0][2])])
+            moment = np.array([0.0, 0.0, -(KP * theta_z(kin.rotation[0]) + KD * kin.omega[0][2])])
             tau[3:] += kin.rotation[0].T @ moment
         return tau
     return torque

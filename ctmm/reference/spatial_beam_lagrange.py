@@ -324,14 +324,24 @@ class SpatialBeamLagrange:
         rhs = -ca.substitute(residual, ud, ca.SX.zeros(n))
         rates = ca.solve(M, rhs)
         self._rates = ca.Function("rates", [q, u, tau, act], [rates])
-        state = ca.vertcat(q, u)
-        self._linear = ca.Function("linear", [q, u, tau, act], [ca.jacobian(rates, state), ca.jacobian(rates, tau),
-                                                              ca.jacobian(rates, act)])
-        zero_act = ca.SX.zeros(len(p.actuators))
-        self._mass_bias = ca.Function("mass_bias", [q, u], [M, ca.substitute(ca.substitute(rhs, tau, ca.SX.zeros(n)),
-                                                                            act, zero_act)])
-        self._energy = ca.Function("energy", [q, u], [T + V])
+        self._symbols = (q, u, tau, act, rates, M, rhs, T + V)
+        self._functions: dict[str, ca.Function] = {}
         self.n = n
+
+    def _function(self, name: str) -> ca.Function:
+        """The casadi function ``linear``, ``mass_bias`` or ``energy`` of the equations, built on first use (the
+        tangent of the symbolic solve is most of the model's construction time)."""
+        if name not in self._functions:
+            q, u, tau, act, rates, M, rhs, energy = self._symbols
+            if name == "linear":
+                outputs = [ca.jacobian(rates, ca.vertcat(q, u)), ca.jacobian(rates, tau), ca.jacobian(rates, act)]
+                self._functions[name] = ca.Function(name, [q, u, tau, act], outputs)
+            elif name == "mass_bias":
+                bias = ca.substitute(ca.substitute(rhs, tau, ca.SX.zeros(self.n)), act, ca.SX.zeros(act.numel()))
+                self._functions[name] = ca.Function(name, [q, u], [M, bias])
+            else:
+                self._functions[name] = ca.Function(name, [q, u], [energy])
+        return self._functions[name]
 
     def accelerations(self, q: np.ndarray, u: np.ndarray, force: np.ndarray | None = None,
                       actuation: np.ndarray | None = None) -> np.ndarray:
@@ -345,7 +355,7 @@ class SpatialBeamLagrange:
         about ``(q, u)`` with no applied forces (``A``: ``[[0, I], [du_dot/dq, du_dot/du]]``)."""
         n, k = self.n, len(self.p.actuators)
         u = np.zeros(n) if u is None else u
-        J, Bf, Ba = (np.asarray(x) for x in self._linear(q, u, np.zeros(n), np.zeros(k)))
+        J, Bf, Ba = (np.asarray(x) for x in self._function("linear")(q, u, np.zeros(n), np.zeros(k)))
         A = np.zeros((2 * n, 2 * n))
         A[:n, n:] = np.eye(n)
         A[n:] = J
@@ -383,7 +393,7 @@ class SpatialBeamLagrange:
 
     def energy(self, q: np.ndarray, u: np.ndarray) -> float:
         """``T + V`` [J] (joint springs and the elastic energy included; no geometric stiffness)."""
-        return float(self._energy(q, u))
+        return float(self._function("energy")(q, u))
 
     def rk4(self, q0: np.ndarray, u0: np.ndarray, dt: float, steps: int, force=None) -> np.ndarray:
         """Classical RK4 on ``[q ; u]``: states ``(steps + 1, 2 n)``; ``force`` an optional constant
@@ -397,7 +407,7 @@ class SpatialBeamLagrange:
 
     def mass_and_bias(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(M, rhs)`` of ``M u_dot = rhs`` at ``(q, u)`` without applied forces."""
-        M, rhs = self._mass_bias(q, u)
+        M, rhs = self._function("mass_bias")(q, u)
         return np.asarray(M), np.asarray(rhs).ravel()
 
     def driven_rk4(self, hub, eta0: np.ndarray, eta_dot0: np.ndarray, dt: float, steps: int) -> np.ndarray:

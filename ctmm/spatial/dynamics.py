@@ -18,6 +18,14 @@ from .model import SpatialModel
 __all__ = ["SpatialSolution", "solve", "accelerations", "reactions", "state_rates", "scene_of", "energy"]
 
 
+def _batched(column: Any, batch: int) -> np.ndarray:
+    """A batched column ``(b, k, 1)`` (``b`` is ``batch`` or 1) as ``(batch, k)`` (a view)."""
+    column = np.asarray(column)
+    if column.shape[0] != batch:
+        column = np.broadcast_to(column, (batch,) + column.shape[1:])
+    return column[:, :, 0]
+
+
 def scene_of(model: SpatialModel) -> SpatialScene:
     """The :class:`SpatialScene` of a model (cheap; the model is immutable); anything else is refused."""
     if not isinstance(model, SpatialModel):
@@ -86,11 +94,10 @@ def solve(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[s
                               "it carries has no inertia in some free direction (to round-off)", time=t,
                               element=joint.name) from exc
     batch = np.asarray(solution.force[0]).shape[0]
-    parts = [np.broadcast_to(np.asarray(a), (batch,) + np.asarray(a).shape[1:])[:, :, 0]
-             for a in scene.velocity_rates(solution)]
+    parts = [_batched(a, batch) for a in scene.velocity_rates(solution)]
     rates = np.concatenate(parts, axis=1) if parts else np.zeros((batch, 0))
-    forces = np.stack([np.broadcast_to(f, (batch, 6, 1))[:, :, 0] for f in solution.force], axis=1)
-    points = np.stack([np.broadcast_to(np.asarray(x)[:, :6], (batch, 6, 1))[:, :, 0] for x in solution.x], axis=1)
+    forces = np.stack([_batched(f, batch) for f in solution.force], axis=1)
+    points = np.stack([_batched(np.asarray(x)[:, :6], batch) for x in solution.x], axis=1)
     if not (np.all(np.isfinite(rates)) and np.all(np.isfinite(forces))):
         raise SimulationError(f"{model.name}: the articulated sweep gave non-finite accelerations at t = {t} s "
                               "(a singular pivot: a joint whose free directions carry no inertia)", time=t,

@@ -6,11 +6,12 @@ non-zero quaternion), so integration drift of the norm never enters the physics 
 """
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
-from ..ops import Ops
+from ..ops import CASADI, NUMPY, Ops
 
 __all__ = ["constant", "entry", "column", "skew", "cross", "axis_rotation", "quaternion_rotation",
            "quaternion_rate", "block_diagonal"]
@@ -42,6 +43,9 @@ def skew(ops: Ops, v: Any) -> Any:
     """``[v]x`` (3 x 3) of a column ``v`` (3 x 1): ``skew(v) w = v x w``."""
     if ops.name == "numpy":                     # same values, without nine-block assembly
         v = np.asarray(v)
+        if v.shape == (1, 3, 1) and v.dtype == np.float64:                   # one state: from Python floats
+            x, y, z = v.ravel().tolist()
+            return np.array(((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0))).reshape(1, 3, 3)
         x, y, z = v[:, 0, 0], v[:, 1, 0], v[:, 2, 0]
         out = np.zeros(v.shape[:1] + (3, 3), dtype=v.dtype)
         out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -z, y, -x
@@ -54,6 +58,10 @@ def skew(ops: Ops, v: Any) -> Any:
 def cross(ops: Ops, a: Any, b: Any) -> Any:
     """``a x b`` of two columns."""
     if ops.name == "numpy":
+        if a.shape == b.shape == (1, 3, 1) and a.dtype == b.dtype == np.float64:   # one state: on Python floats,
+            a0, a1, a2 = a.ravel().tolist()                                     # the same IEEE operations
+            b0, b1, b2 = b.ravel().tolist()
+            return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0)).reshape(1, 3, 1)
         a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
         b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
         return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
@@ -62,15 +70,34 @@ def cross(ops: Ops, a: Any, b: Any) -> Any:
 
 def axis_rotation(ops: Ops, axis: np.ndarray, angle: Any) -> Any:
     """``Rot(axis, angle) = I + sin(angle) [a]x + (1 - cos(angle)) [a]x^2`` for a unit numeric ``axis``."""
-    a = np.asarray(axis, dtype=float)
+    eye, k, k2 = _axis_terms(ops.name, tuple(np.asarray(axis, dtype=float).reshape(3).tolist()))
+    return eye + k * ops.sin(angle) + k2 * (1.0 - ops.cos(angle))
+
+
+@lru_cache(maxsize=256)
+def _axis_terms(ops_name: str, axis: tuple[float, float, float]) -> tuple[Any, Any, Any]:
+    """``(I, [a]x, [a]x^2)`` of an axis as constants of the ops named ``ops_name`` (numpy ones read-only: shared)."""
+    a = np.asarray(axis)
     k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-    return constant(ops, np.eye(3)) + constant(ops, k) * ops.sin(angle) + constant(ops, k @ k) * (1.0 - ops.cos(angle))
+    ops = NUMPY if ops_name == "numpy" else CASADI
+    terms = (constant(ops, np.eye(3)), constant(ops, k), constant(ops, k @ k))
+    if ops_name == "numpy":
+        for term in terms:
+            term.flags.writeable = False
+    return terms
 
 
 def quaternion_rotation(ops: Ops, w: Any, x: Any, y: Any, z: Any) -> Any:
     """Rotation matrix of the quaternion ``(w, x, y, z)`` divided by its norm (any non-zero quaternion)."""
     n2 = w * w + x * x + y * y + z * z
     if ops.name == "numpy":
+        parts = (w, x, y, z, n2)
+        if all(type(c) is np.ndarray and c.shape == (1, 1, 1) and c.dtype == np.float64 for c in parts):
+            w, x, y, z, n2 = (c.item() for c in parts)              # one state: the same operations on floats
+            R = np.array(((w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)),
+                          (2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)),
+                          (2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z)))
+            return (R / n2).reshape(1, 3, 3)
         w, x, y, z = np.broadcast_arrays(*(np.asarray(c)[:, 0, 0] for c in (w, x, y, z)))
         n2 = np.asarray(n2)[:, 0, 0]
         R = np.stack([np.stack([w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
@@ -86,8 +113,8 @@ def quaternion_rotation(ops: Ops, w: Any, x: Any, y: Any, z: Any) -> Any:
 def quaternion_rate(q: np.ndarray, omega: np.ndarray) -> np.ndarray:
     """``q_dot = 1/2 q (x) (0, omega)`` for quaternions ``q (..., 4)`` and child-axes angular velocities
     ``omega (..., 3)`` [rad/s] (numpy)."""
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    p, r, s = np.moveaxis(omega, -1, 0)
+    w, x, y, z = (q[..., i] for i in range(4))
+    p, r, s = (omega[..., i] for i in range(3))
     return 0.5 * np.stack([-x * p - y * r - z * s, w * p + y * s - z * r, w * r + z * p - x * s,
                            w * s + x * r - y * p], axis=-1)
 
