@@ -100,7 +100,9 @@ def riccati_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: Bou
     us : sequence of ndarray
         Affine parts, each ``(B, n)``.
     start, end : BoundaryStart, BoundaryEnd
-        Boundary relations.
+        Boundary relations.  For ``n > 2``, leading batch axes broadcast: load cases sharing their
+        matrices pass ``Us`` as ``(1, B, n, n)`` and ``us``, ``P0``, ``b`` as ``(k, B, ...)``; the
+        states are then ``(N + 1, k, B, n)`` (:func:`ctmm.chain_assembly.solve_load_cases`).
     want_states : bool
         If False, only the characteristic ``log_det`` is computed (no back-substitution).
     want_log_det : bool

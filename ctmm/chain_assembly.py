@@ -91,11 +91,12 @@ class MatrixCache:
 
 
 def assemble_body(system: Chain, body: Sequence, points: Sequence[int], s: np.ndarray,
-                  amplitudes: Mapping[int, Mapping[str, Any]]):
+                  amplitudes: Mapping[int, Mapping[str, Any]], matrices: MatrixCache | None = None):
     """Element matrices and boundary relations of the pieces ``body`` of ``system`` (see :func:`assemble`).
 
     ``points[p]`` is the index among the pieces' connection points of the system's connection
     point ``p`` (from :func:`subdivided`); loads ``amplitudes`` are refused on subdivided elements.
+    ``matrices``: a :class:`MatrixCache` over the same ``s`` shared by several load cases (default: a new one).
     """
     layout = system.layout
     owner = {}  # piece index -> position of the system element it belongs to
@@ -103,7 +104,7 @@ def assemble_body(system: Chain, body: Sequence, points: Sequence[int], s: np.nd
         for j in range(points[pos - 1], points[pos]):
             owner[j] = pos
     Us, us = [], []
-    matrices = MatrixCache(s)
+    matrices = MatrixCache(s) if matrices is None else matrices
     for j, element in enumerate(body):
         pos = owner[j]
         amps = amplitudes.get(pos, {})
@@ -160,6 +161,45 @@ def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "ricca
     if index is not None:  # controlled chains interleave sensing matrices: keep the points only
         sol.states = sol.states[np.asarray(index)]
     return sol
+
+
+def solve_load_cases(system: Chain, s: np.ndarray, load_cases: Sequence[Mapping[int, Mapping[str, Any]]]
+                     ) -> np.ndarray:
+    """States ``(len(load_cases), N + 1, B, n)`` of :func:`solve` (Riccati) for several load cases at once.
+
+    A chain with long fields is subdivided and its element matrices ``U(s)`` evaluated once for every
+    case; the Riccati sweep (``S_j``, ``G_j``: load-free) runs once with the cases' affine parts
+    stacked on a leading axis (:func:`ctmm.assembly.riccati_solve` broadcasts it), so ``k`` cases cost
+    about one solve.  The numbers equal ``k`` separate :func:`solve` calls (the same operations entry
+    by entry; ``tests/test_manipulator_exact.py`` compares).  Two-component chains (lumped: the scalar
+    and compiled recursions) and controlled chains are answered case by case by :func:`solve`.
+
+    Parameters
+    ----------
+    system : Chain
+    s : ndarray
+        1-D array of Laplace variables [1/s].
+    load_cases : sequence of mapping
+        ``{element position: {input name: phasor}}`` per case.
+    """
+    cases = [case or {} for case in load_cases]
+    if len(cases) < 2 or hasattr(system, "assemble_frequency") or system.layout.size == 2:
+        return np.stack([solve(system, s, case).states for case in cases]) if cases else np.empty((0,))
+    s = np.asarray(s, dtype=complex)
+    body, pieces = subdivided(system, float(np.max(np.abs(s), initial=0.0)))
+    matrices = MatrixCache(s)
+    parts = [assemble_body(system, body, pieces, s, case, matrices) for case in cases]
+    Us, _, start, _ = parts[0]
+
+    def shared(arrays: list[np.ndarray]) -> np.ndarray:
+        # a load-free part equal in every case stays unstacked, so the sweep of S_j runs once
+        return arrays[0] if all(np.array_equal(a, arrays[0]) for a in arrays[1:]) else np.stack(arrays)
+
+    stacked_start = BoundaryStart(start.e_indices, shared([p[2].S0 for p in parts]), np.stack([p[2].P0 for p in parts]))
+    stacked_end = BoundaryEnd(shared([p[3].Bm for p in parts]), np.stack([p[3].b for p in parts]))
+    us = [np.stack([p[1][j] for p in parts]) for j in range(len(body))]
+    states = SOLVERS["riccati"]([U[None] for U in Us], us, stacked_start, stacked_end, want_log_det=False).states
+    return np.moveaxis(states[np.asarray(pieces)], 1, 0)
 
 
 def is_lumped(system: Any) -> bool:

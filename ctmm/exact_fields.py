@@ -356,18 +356,17 @@ def _expand(terms: Sequence[tuple[str, float]], lookup) -> Terms:
 
 
 def _open_loop(chain: Any, s: np.ndarray, inputs: list[str], outputs: list[str]) -> np.ndarray:
-    """``G[k, i_out, i_in]``: chain displacement signals per unit chain input (Riccati sweep)."""
-    from .chain_assembly import solve
+    """``G[k, i_out, i_in]``: chain displacement signals per unit chain input (one Riccati sweep for
+    all inputs: the beam matrices evaluated once, the inputs' load vectors stacked)."""
+    from .chain_assembly import solve_load_cases
 
     if hasattr(chain, "open_loop"):            # a ctmm.spatial_beam_trees.SpatialBeamTree: branches condensed
         return chain.open_loop(s, inputs, outputs)
     G = np.empty((s.size, len(outputs), len(inputs)), dtype=complex)
-    signals = [chain.signal(name) for name in outputs]
-    for b, name in enumerate(inputs):
-        entry = chain.input(name)
-        states = solve(chain, s, {entry.position: {entry.input: 1.0}}).states
-        for a, signal in enumerate(signals):
-            G[:, a, b] = states[signal.point, :, signal.component] * s ** signal.derivative
+    entries = [chain.input(name) for name in inputs]
+    states = solve_load_cases(chain, s, [{entry.position: {entry.input: 1.0}} for entry in entries])
+    for a, signal in enumerate(chain.signal(name) for name in outputs):
+        G[:, a, :] = states[:, signal.point, :, signal.component].T * (s ** signal.derivative)[:, None]
     return G
 
 

@@ -97,6 +97,19 @@ def test_hanging_beam_tip_receptance_equals_the_finite_element_model():
     assert np.all(np.abs(exact - value) <= 0.1 * bound + 1e-8 * np.abs(value))
 
 
+def test_a_standing_field_answers_every_input_in_one_sweep_as_one_solve_each():
+    """The varying-tension field (standing: compression) and the root spring in the one sweep for all inputs
+    (``chain_assembly.solve_load_cases``, the exact-field open loop): equal to one ``solve`` per input bit for bit."""
+    from ctmm.chain_assembly import solve, solve_load_cases
+    from ctmm.exact_fields import exact_form
+
+    chain = exact_form(beam_with_tip(-G, bending_stiffness=30.0, root_stiffness=40.0), {"q": np.zeros(3)}).chain
+    assert any(isinstance(element, VaryingTensionBeamField) for element in chain.body)
+    s = 1j * np.array([0.7, 20.0, 300.0, 5000.0])
+    cases = [{entry.position: {entry.input: 1.0}} for entry in map(chain.input, chain.input_names())]
+    assert np.array_equal(solve_load_cases(chain, s, cases), np.stack([solve(chain, s, case).states for case in cases]))
+
+
 def test_the_count_of_the_hanging_beam_is_certified_between_the_reference_frequencies():
     from ctmm.exact_fields import exact_form
 

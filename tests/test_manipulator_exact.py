@@ -146,6 +146,24 @@ def test_a_hinged_two_beam_chain_equals_the_continuum_boundary_value_problem():
     np.testing.assert_allclose(exact("second.tip.w", "second.tip.force"), tip - root - L2 * root_slope, rtol=1e-8)
 
 
+def test_one_sweep_for_every_input_equals_a_solve_per_input():
+    """The exact form's open loop solves all its chain inputs in one Riccati sweep (the beam matrices evaluated
+    once, the load vectors stacked: ``chain_assembly.solve_load_cases``); its states equal the former loop of
+    one ``solve`` per input bit for bit, at frequencies where the beams are subdivided (3000, 1e4 rad/s) too."""
+    from ctmm.chain_assembly import solve, solve_load_cases, subdivided
+    from ctmm.exact_fields import exact_form
+
+    chain = exact_form(seed_scene()[3].plant).chain
+    s = 1j * np.append(OMEGA, [3000.0, 1e4])
+    assert len(subdivided(chain, 1e4)[0]) > len(chain.body)
+    # every chain input: hub and patch moments, forces, the tip's loads
+    cases = [{entry.position: {entry.input: 1.0}} for entry in map(chain.input, chain.input_names())]
+    stacked = solve_load_cases(chain, s, cases)
+    one_by_one = np.stack([solve(chain, s, case).states for case in cases])
+    assert stacked.shape == (len(cases), len(chain.body) + 1, s.size, 4)
+    assert np.array_equal(stacked, one_by_one)
+
+
 def test_exact_fields_refuse_what_they_cannot_map():
     import pytest
 
