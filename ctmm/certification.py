@@ -222,7 +222,29 @@ def plant_realisation(model: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
     return A, b, C.reshape(len(model.term_names), A.shape[0]), d
 
 
-def fixed_roots(model: Any, sigma: float = 0.0) -> np.ndarray:
+@dataclass(frozen=True)
+class Realisation:
+    """The open loop's ``x' = A x + b f``, ``y = C x + d f`` (:func:`plant_realisation`) and the eigenvalues
+    of ``A`` [1/s] (empty without states or beyond ``MAX_EIGEN_STATES``): built once (:func:`realise`)
+    for :func:`fixed_roots` and :func:`loop_bound` (a 500-mass chain: 1000 states, each an eigenvalue
+    problem of about a second)."""
+
+    A: np.ndarray
+    b: np.ndarray
+    C: np.ndarray
+    d: np.ndarray
+    eigenvalues: np.ndarray
+
+
+def realise(model: Any) -> Realisation:
+    """:class:`Realisation` of the loop of ``model`` (raises :class:`~ctmm.errors.ModelError` as
+    :func:`plant_realisation`)."""
+    A, b, C, d = plant_realisation(model)
+    eigenvalues = np.linalg.eigvals(A) if 0 < A.shape[0] <= MAX_EIGEN_STATES else np.zeros(0, complex)
+    return Realisation(A, b, C, d, eigenvalues)
+
+
+def fixed_roots(model: Any, sigma: float = 0.0, realisation: Realisation | None = None) -> np.ndarray:
     """Characteristic roots on the line ``Re s = sigma`` that the loop cannot move [1/s].
 
     Eigenvalues ``p`` of the open loop's ``A`` (:func:`plant_realisation`) with
@@ -232,16 +254,19 @@ def fixed_roots(model: Any, sigma: float = 0.0) -> np.ndarray:
     They are roots of ``Delta`` for every gain, delay and weighting: undamped modes and free
     motions the loop neither drives nor senses.  Returns those with ``Im p >= 0`` (one per
     distinct value); empty when the model has no realisation or more than ``MAX_EIGEN_STATES``.
+    ``realisation``: the model's :func:`realise` when the caller has it already.
     """
-    try:
-        A, b, C, _ = plant_realisation(model)
-    except ModelError:
-        return np.zeros(0, complex)
+    if realisation is None:
+        try:
+            realisation = realise(model)
+        except ModelError:
+            return np.zeros(0, complex)
+    A, b, C = realisation.A, realisation.b, realisation.C
     n = A.shape[0]
     if not 0 < n <= MAX_EIGEN_STATES:
         return np.zeros(0, complex)
     found: list[complex] = []
-    for p in np.linalg.eigvals(A):
+    for p in realisation.eigenvalues:
         if p.imag < 0 or abs(p.real - sigma) > 1e-6 * max(1.0, abs(p)) or \
                 any(abs(p - q) <= 1e-6 * max(1.0, abs(p)) for q in found):
             continue
@@ -254,7 +279,7 @@ def fixed_roots(model: Any, sigma: float = 0.0) -> np.ndarray:
     return np.array(found, dtype=complex)
 
 
-def loop_bound(model: Any, weight_bound: np.ndarray) -> LoopBound:
+def loop_bound(model: Any, weight_bound: np.ndarray, realisation: Realisation | None = None) -> LoopBound:
     """A :class:`LoopBound` for the loop of a :class:`ctmm.sweeps.LoopCharacteristic`.
 
     Parameters
@@ -264,6 +289,8 @@ def loop_bound(model: Any, weight_bound: np.ndarray) -> LoopBound:
         realisation (a state-space characteristic gives its own, ``open_loop_realisation()``).
     weight_bound : numpy.ndarray
         Bound of ``|k w_j|`` per sensor term over the parameter sets.
+    realisation : Realisation, optional
+        The model's :func:`realise` when the caller has it already.
 
     Raises
     ------
@@ -271,14 +298,14 @@ def loop_bound(model: Any, weight_bound: np.ndarray) -> LoopBound:
         No realisation (distributed elements, other delayed loops) or an improper controller;
         the message says which.
     """
-    A, b, C, d = plant_realisation(model)
+    realisation = realise(model) if realisation is None else realisation
+    A, b, C, d = realisation.A, realisation.b, realisation.C, realisation.d
     if getattr(model, "open_loop_realisation", None) is not None:   # controller states included
-        poles = np.linalg.eigvals(A) if 0 < A.shape[0] <= MAX_EIGEN_STATES else np.zeros(0)
-        return LoopBound((_factor(A, b, C, d, np.asarray(weight_bound, float)),), poles.astype(complex),
-                         int(A.shape[0]))
+        return LoopBound((_factor(A, b, C, d, np.asarray(weight_bound, float)),),
+                         realisation.eigenvalues.astype(complex), int(A.shape[0]))
     lp = model.loop
     factors = [_factor(A, b, C, d, np.asarray(weight_bound, float))]
-    poles = [np.linalg.eigvals(A)] if 0 < A.shape[0] <= MAX_EIGEN_STATES else []
+    poles = [realisation.eigenvalues] if 0 < A.shape[0] <= MAX_EIGEN_STATES else []
     if lp.is_lti:
         Ac, Bc, Cc, dc = controller_state_space(lp.name, lp.gain, "for the state-space bound of the certificate "
                                                 "(with the plant the loop may still decay, or be neutral or advanced)")

@@ -22,7 +22,8 @@ from typing import Sequence
 import numpy as np
 
 from . import validation
-from .certification import MAX_EIGEN_STATES, ContourCertificate, StabilityWarning, fixed_roots, loop_bound
+from .certification import (MAX_EIGEN_STATES, ContourCertificate, Realisation, StabilityWarning, fixed_roots,
+                            loop_bound, realise)
 from .errors import ModelError, SingularSystemError
 from .sweeps import TINY, LoopCharacteristic
 
@@ -197,23 +198,24 @@ def fixed_root_note(roots: np.ndarray, sigma: float) -> str:
 
 
 def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, tau_max: float,
-            im_max: float | None, *, fixed_on_line: np.ndarray | None = None
-                   ) -> tuple[float, np.ndarray, ContourCertificate]:
+            im_max: float | None, *, fixed_on_line: np.ndarray | None = None,
+                   realisation: Realisation | None = None) -> tuple[float, np.ndarray, ContourCertificate]:
     """Contour height ``R`` [rad/s], open-loop poles (line seeds) and the certificate of the
     region ``Re s >= sigma, |Im s| <= R`` for a parameter box (:mod:`ctmm.certification`); a
     user ``im_max`` too small for the loop warns (:class:`StabilityWarning`).  ``fixed_on_line``:
     :func:`~ctmm.certification.fixed_roots` ``(model, sigma)`` when the caller has it already (an
-    eigenvalue problem of the open loop's realisation)."""
+    eigenvalue problem of the open loop's realisation); ``realisation``: the model's
+    :func:`~ctmm.certification.realise` when the caller has it (built once for the roots and the bound)."""
     growth = math.exp(max(0.0, -sigma) * tau_max)
     if im_max is not None:
         im_max = validation.positive("im_max", im_max)
     notes: list[str] = []
     for line in (sigma, 0.0) if sigma < 0 else (sigma,):
-        fixed = fixed_on_line if line == sigma and fixed_on_line is not None else fixed_roots(model, line)
+        fixed = fixed_on_line if line == sigma and fixed_on_line is not None else fixed_roots(model, line, realisation)
         if fixed.size:
             notes.append(fixed_root_note(fixed, line) + ("; counts on this line are -1" if line == sigma else ""))
     try:
-        bound = loop_bound(model, weight_bound)
+        bound = loop_bound(model, weight_bound, realisation)
     except ModelError as exc:
         bound, reason = None, str(exc)
     if bound is None:
@@ -314,8 +316,13 @@ def build_contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: 
     resolution : int
         Initial number of line samples.
     """
-    fixed = fixed_roots(model, sigma)                 # for the certificate's notes and the contour
-    radius, poles, certificate = contour_height(model, weight_bound, sigma, tau_max, im_max, fixed_on_line=fixed)
+    try:                                              # A, b, C, d and eig(A): once for the roots and the bound
+        realisation = realise(model)
+    except ModelError:
+        realisation = None                            # (the bound names the reason)
+    fixed = fixed_roots(model, sigma, realisation)    # for the certificate's notes and the contour
+    radius, poles, certificate = contour_height(model, weight_bound, sigma, tau_max, im_max, fixed_on_line=fixed,
+                                                realisation=realisation)
     growth = math.exp(max(0.0, -sigma) * tau_max)
     notes = list(certificate.notes)
     for _ in range(8):

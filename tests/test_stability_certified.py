@@ -154,16 +154,20 @@ def test_seed_chain_delay_margin_with_no_option():
 
 
 def test_seed_chain_counts_at_0p2_s(monkeypatch):
+    import ctmm.certification as certification
     import ctmm.counting_contour as counting_contour
 
     searched, search = [], counting_contour.fixed_roots
-    monkeypatch.setattr(counting_contour, "fixed_roots", lambda *args: searched.append(args[1:]) or search(*args))
+    monkeypatch.setattr(counting_contour, "fixed_roots", lambda *args: searched.append(args[1]) or search(*args))
+    realised, realise = [], certification.plant_realisation
+    monkeypatch.setattr(certification, "plant_realisation", lambda model: realised.append(1) or realise(model))
     system, reference, loop = seed(delay=0.2)
     counts = unstable_root_count(system, delay=[0.0, 0.1, 0.2, 0.35])
     expected = [reference_count(reference, GlobalLoop(2, "velocity", 0, 1.0, t), t) for t in (0.0, 0.1, 0.2, 0.35)]
     assert counts.tolist() == expected
-    # the open loop's eigenvalue search for roots fixed on the line runs once per contour (it ran twice)
-    assert searched == [(0.0,)]
+    # the open loop's eigenvalue search for roots fixed on the line runs once per contour (it ran twice), and
+    # the open loop's realisation and eigenvalues are built once for those roots and the loop bound (twice)
+    assert searched == [0.0] and len(realised) == 1
     assert counts[2] == 2 == collocation_count(reference, loop)
     assert counts.certificate.certified
 
