@@ -76,11 +76,21 @@ def subdivided(system: Chain, omega_max: float) -> tuple[list, list[int]]:
 
 
 class MatrixCache:
-    """``U(s)`` per element object, evaluated once (subdivided pieces are one repeated object)."""
+    """``U(s)`` per element object, evaluated once (subdivided pieces are one repeated object), and
+    its load vector without inputs (:meth:`unloaded`, shared by the load cases of :func:`solve_load_cases`)."""
 
     def __init__(self, s: np.ndarray) -> None:
         self.s = s
         self._cache: dict[int, tuple[Any, np.ndarray]] = {}
+        self._unloaded: dict[int, tuple[Any, np.ndarray]] = {}
+
+    def unloaded(self, element) -> np.ndarray:
+        """``element.load_vector(s, {})``, evaluated once per element object."""
+        hit = self._unloaded.get(id(element))
+        if hit is None or hit[0] is not element:
+            hit = (element, np.asarray(element.load_vector(self.s, {}), dtype=complex))
+            self._unloaded[id(element)] = hit
+        return hit[1]
 
     def __call__(self, element) -> np.ndarray:
         hit = self._cache.get(id(element))
@@ -111,7 +121,7 @@ def assemble_body(system: Chain, body: Sequence, points: Sequence[int], s: np.nd
         if amps and points[pos] - points[pos - 1] > 1:
             raise ModelError(f"element {system.elements[pos].name!r} is subdivided and cannot take loads")
         Us.append(matrices(element))
-        us.append(np.asarray(element.load_vector(s, amps), dtype=complex))
+        us.append(np.asarray(element.load_vector(s, amps), dtype=complex) if amps else matrices.unloaded(element))
     e_idx, S0, P0 = system.start.start(layout, s, amplitudes.get(0, {}))
     Bm, b = system.end.end(layout, s, amplitudes.get(len(system.elements) - 1, {}))
     return Us, us, BoundaryStart(e_idx, S0, P0), BoundaryEnd(Bm, b)
