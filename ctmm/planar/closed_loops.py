@@ -178,11 +178,18 @@ class KinematicLoopModel:
         return np.concatenate(phi), np.concatenate(rate)
 
     def jacobian(self, q, t: float = 0.0) -> np.ndarray:
-        """``J = dPhi/dq`` (rows, n): ``Phi'`` is affine in ``qdot`` (linear without driven cuts), so column ``k`` is
-        ``Phi'(q, e_k) - Phi'(q, 0)``."""
-        n = self.tree.n_coordinates
-        offset = self.constraints(q, np.zeros(n), t)[1] if self._rows[-1] > 2 * len(self.cuts) else 0.0
-        return np.column_stack([self.constraints(q, np.eye(n)[k], t)[1] - offset for k in range(n)])
+        """``J = dPhi/dq`` (rows, n), exact: ``Phi' = J qdot + b(t)`` (``b``: the driven joints' and cuts' prescribed
+        rates), ``J`` in one pass from the tree's rate maps at ``q`` (:meth:`CutPoints.rate_maps`,
+        :meth:`CutPoints.point_rate_map`)."""
+        points = self._points_at(q, np.zeros(self.tree.n_coordinates), t)
+        maps, sides = self.cut_points.rate_maps(points), self.cut_points
+        rows = []
+        for cut, ((jp, ep), (jc, ec)) in zip(self.cuts, self._points):
+            (vp, wp), (vc, wc) = sides.point_rate_map(points, maps, jp, ep), sides.point_rate_map(points, maps, jc, ec)
+            rows.append(vc - vp)
+            if cut.driven:
+                rows.append((wc - wp)[None, :])
+        return np.concatenate(rows)
 
     def _cut_loads(self, points: dict, loads: np.ndarray, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
         """Cut loads ``loads`` (the unknowns, stacked as the rows of :meth:`constraints`: each cut's force, global
