@@ -311,12 +311,19 @@ class KinematicLoopModel:
     def project(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0, iterations: int = 3
                 ) -> tuple[np.ndarray, np.ndarray]:
         """Minimum-norm projection of ``(q, qdot)`` onto ``Phi = 0``, ``Phi' = 0`` (a few Gauss-Newton steps)."""
+        return self.project_rows(q, qdot, t, iterations)[:2]
+
+    def project_rows(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0, iterations: int = 3,
+                     rows: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`project` and ``Phi`` [m, rad] at its result; ``rows``: :meth:`constraints` at ``(q, qdot, t)``
+        when the caller has them (each evaluation of the constraints serves the step it is needed for)."""
+        phi, rate = self.constraints(q, qdot, t) if rows is None else rows
         for _ in range(iterations):
-            phi, _ = self.constraints(q, qdot, t)
             if np.max(np.abs(phi)) < PROJECTION_SKIP:
                 break
             q = q - np.linalg.lstsq(self.jacobian(q, t), phi, rcond=None)[0]
-        return q, qdot - np.linalg.lstsq(self.jacobian(q, t), self.constraints(q, qdot, t)[1], rcond=None)[0]
+            phi, rate = self.constraints(q, qdot, t)
+        return q, qdot - np.linalg.lstsq(self.jacobian(q, t), rate, rcond=None)[0], phi
 
     # -- linearisation on the constraint manifold (the algorithm: :mod:`ctmm.loop_manifold`) -----------
     def require_static(self, what: str) -> int:
@@ -462,16 +469,13 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
         qdd, _ = model.solve(y[:n], y[n:], t)
         return np.concatenate([y[n:], qdd])
 
-    def finish(y: np.ndarray, t: float) -> np.ndarray:
-        return np.concatenate(model.project(y[:n], y[n:], t)) if projection else y
-
     family, step = model.tree.deformable_family, dt if method == "rk4" else None
     check = None if family is None else (    # the tree runs' rule: a modal beam's deflection, a subsystem's size
         lambda t, y: family.check_divergence(model.tree, y[:n], float(t), step, method))
     return integrate_loop_run(
         lambda t, q_rows, qdot_rows, wall: loop_history(model, t, q_rows, qdot_rows, method, wall, evaluations[0]),
-        rate, np.concatenate([q, v]), n, t_final=t_final, dt=dt, method=method, finish=finish, rtol=rtol, atol=atol,
-        store_every=store_every, t_eval=t_eval, max_step=max_step, label=f"kinematic loop {model.name!r}",
+        rate, np.concatenate([q, v]), n, t_final=t_final, dt=dt, method=method, finish=lambda y, t: y, rtol=rtol,
+        atol=atol, store_every=store_every, t_eval=t_eval, max_step=max_step, label=f"kinematic loop {model.name!r}",
         element=model.cuts[0].name, velocity_label="qdot", model=model if projection else None, check=check)
 
 
