@@ -4,7 +4,8 @@ joints after every step, or ``solve_ivp`` with Baumgarte stabilisation alone.
 The state is ``y = [q ; v]`` (tree coordinates and velocities) with the closed-loop rates ``rate(t, y)``
 (:meth:`ctmm.planar.closed_loops.KinematicLoopModel.solve`,
 :meth:`ctmm.spatial.closed_loops.SpatialKinematicLoopModel.solve`); ``finish(y, t)`` is applied after every RK4 step
-(the projection onto ``Phi = 0``, ``Phi' = 0``, or the renormalisation of quaternions without it).
+(the renormalisation of quaternions of a run without projection), or the model's projection onto ``Phi = 0``,
+``Phi' = 0`` (``model.project_rows``).
 ``docs/closed_loops.md`` sections 2, 3d and 8.
 
 The rules every integrator of a kinematic loop model (this RK4, the generated RK4 of
@@ -125,12 +126,13 @@ def singular_compliance(condition: float) -> str:
             "a singular configuration of the loop or redundant cut joints")
 
 
-def projected_residual(model: Any, q: np.ndarray, v: np.ndarray, t: float, label: str, iterations: int
-                       ) -> tuple[float, SimulationError | None]:
+def projected_residual(model: Any, q: np.ndarray, v: np.ndarray, t: float, label: str, iterations: int,
+                       phi: np.ndarray | None = None) -> tuple[float, SimulationError | None]:
     """``max |Phi|`` [m, rad] of a projected state ``(q, v)`` at ``t`` [s] and, above :data:`PROJECTION_TOLERANCE`,
     the :class:`~ctmm.errors.SimulationError` that stops the run (:func:`projection_failure`, the time, the cut joint
-    furthest apart; the caller adds its partial result), else ``None``."""
-    phi = np.abs(np.asarray(model.constraints(q, v, t)[0], float))
+    furthest apart; the caller adds its partial result), else ``None``; ``phi``: ``Phi`` at ``(q, v, t)`` when the
+    projection returned it (``model.project_rows``), else evaluated here."""
+    phi = np.abs(np.asarray(model.constraints(q, v, t)[0] if phi is None else phi, float))
     residual = float(np.max(phi, initial=0.0))
     if residual <= PROJECTION_TOLERANCE:
         return residual, None
@@ -142,9 +144,10 @@ class StepProjection:
     """The projection of a fixed-step run onto the cut joints after every step, checked by the one rule
     (:data:`PROJECTION_TOLERANCE`), with the drift before and after each projection recorded.
 
-    The projection is the model's own (``model.project``: Gauss-Newton on ``Phi(q) = 0`` with the minimum-norm
-    correction along the model's retraction, then ``qdot <- qdot - J^+ Phi'``), the one the RK4 of
-    :func:`integrate_loop_model` applies; the DT-TMM schemes call it after every accepted step
+    The projection is the model's own (``model.project_rows``: ``model.project`` with ``Phi`` at its result,
+    Gauss-Newton on ``Phi(q) = 0`` with the minimum-norm correction along the model's retraction, then
+    ``qdot <- qdot - J^+ Phi'``; given the constraints of the state before it, which the drift record evaluates), the
+    one the RK4 of :func:`integrate_loop_model` applies; the DT-TMM schemes call it after every accepted step
     (:func:`ctmm.planar.implicit.simulate_implicit`, :func:`ctmm.spatial.implicit.simulate_spatial_implicit`
     ``project=``).
 
@@ -180,11 +183,12 @@ class StepProjection:
             ``max |Phi|`` above :data:`PROJECTION_TOLERANCE` after the projection (:func:`projection_failure`), with
             the time and the cut joint furthest apart (the stepper adds its partial result).
         """
-        phi, rate = self.model.constraints(q, v, t)
+        q, v = np.asarray(q, float), np.asarray(v, float)
+        phi, rate = rows = self.model.constraints(q, v, t)
         self.drift_before.append(float(np.max(np.abs(phi), initial=0.0)))
         self.drift_rate_before.append(float(np.max(np.abs(rate), initial=0.0)))
-        q, v = self.model.project(np.asarray(q, float), np.asarray(v, float), t, self.iterations)
-        after, failure = projected_residual(self.model, q, v, t, self.label, self.iterations)
+        q, v, phi = self.model.project_rows(q, v, t, self.iterations, rows)
+        after, failure = projected_residual(self.model, q, v, t, self.label, self.iterations, phi)
         if failure is not None:
             raise failure
         self.drift_after.append(after)
@@ -221,10 +225,12 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
     method : str
         ``"rk4"`` or a ``solve_ivp`` method (:data:`SOLVE_IVP_METHODS`).
     finish : callable
-        ``(y, t) -> y`` after every RK4 step (projection or renormalisation).
+        ``(y, t) -> y`` after every RK4 step of a run without projection (``model`` not given: the identity, or the
+        renormalisation of quaternions).
     model : KinematicLoopModel or SpatialKinematicLoopModel, optional
-        Given when ``finish`` projects: its ``constraints(q, v, t)`` after every RK4 step must be within
-        :data:`PROJECTION_TOLERANCE` (:func:`projection_failure` otherwise).
+        Given when the run projects: after every RK4 step its ``project_rows(q, v, t, iterations)`` (the projection
+        with ``Phi`` at its result), whose ``Phi`` must be within :data:`PROJECTION_TOLERANCE`
+        (:func:`projection_failure` otherwise).
     iterations : int
         The Gauss-Newton steps of the projection (named in the error).
     check : callable, optional
@@ -280,11 +286,15 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
             if not np.all(np.isfinite(y)):
                 raise SimulationError(f"{label}: non-finite state at t = {k * h} s", time=k * h, element=element,
                                       partial_result=partial())
-            y = finish(y, k * h)
+            if model is None:
+                y = finish(y, k * h)
+            else:                       # the projection, with Phi at its result for the residual check
+                q, v, phi = model.project_rows(y[:n], y[n:], k * h, iterations)
+                y = np.concatenate([q, v])
             if check is not None:       # a body beyond its range first: the cause of a projection that then fails
                 _checked(check, k * h, y, partial)
             if model is not None:
-                _, failure = projected_residual(model, y[:n], y[n:], k * h, label, iterations)
+                _, failure = projected_residual(model, y[:n], y[n:], k * h, label, iterations, phi)
                 if failure is not None:
                     raise SimulationError(f"{failure} (after t = {ts[-1]} s, the last good stored state)",
                                           time=failure.time, element=failure.element, partial_result=partial())

@@ -177,3 +177,34 @@ def test_spatial_feedback_loop_converges_to_the_dae_and_projects(spatial_four_ba
         assert errors[1] < 1e-5 and 3.5 < errors[0] / errors[1] < 4.5
     else:
         assert errors[1] < 1e-8 and 12.0 < errors[0] / errors[1] < 20.0
+
+
+def test_step_projection_equals_the_gauss_newton_written_out_and_its_residual(planar_four_bar, spatial_four_bar):
+    """The projection of a step (:class:`StepProjection`, evaluating each constraint row once) equals, bit for bit,
+    the Gauss-Newton of ``docs/closed_loops.md`` §2 written out here on the model's ``constraints`` and ``jacobian``
+    (planar: ``Phi`` and ``J`` at every iterate, then ``qdot - J^+ Phi'`` at the last one; spatial: its
+    ``project``), and its recorded drifts are ``max |Phi|`` of the state before and after it."""
+    from ctmm.loop_integration import PROJECTION_SKIP
+
+    def planar_gauss_newton(loop, q, v, t, iterations):
+        for _ in range(iterations):
+            phi, _ = loop.constraints(q, v, t)
+            if np.max(np.abs(phi)) < PROJECTION_SKIP:
+                break
+            q = q - np.linalg.lstsq(loop.jacobian(q, t), phi, rcond=None)[0]
+        return q, v - np.linalg.lstsq(loop.jacobian(q, t), loop.constraints(q, v, t)[1], rcond=None)[0]
+
+    rng = np.random.default_rng(21)
+    planar, q0, v0, _ = planar_four_bar
+    spatial, sq, sv = spatial_four_bar
+    for loop, q_on, v_on, written in ((planar, q0, v0, planar_gauss_newton),
+                                      (spatial, sq, sv, lambda loop, q, v, t, k: loop.project(q, v, t, k))):
+        for offset, iterations in ((1e-6, 3), (1e-4, 1), (1e-3, 3), (0.0, 3)):
+            q = np.asarray(q_on, float) + offset * rng.normal(size=len(q_on))
+            v = np.asarray(v_on, float) + 1e-2 * rng.normal(size=len(v_on))
+            projector = StepProjection(loop, "loop", iterations=iterations)
+            q_new, v_new = projector(0.05, q, v)
+            q_ref, v_ref = written(loop, q.copy(), v.copy(), 0.05, iterations)
+            assert np.array_equal(q_new, q_ref) and np.array_equal(v_new, v_ref)
+            assert projector.drift_before == [float(np.max(np.abs(loop.constraints(q, v, 0.05)[0])))]
+            assert projector.drift_after == [float(np.max(np.abs(loop.constraints(q_ref, v_ref, 0.05)[0])))]

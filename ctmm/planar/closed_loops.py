@@ -178,11 +178,18 @@ class KinematicLoopModel:
         return np.concatenate(phi), np.concatenate(rate)
 
     def jacobian(self, q, t: float = 0.0) -> np.ndarray:
-        """``J = dPhi/dq`` (rows, n): ``Phi'`` is affine in ``qdot`` (linear without driven cuts), so column ``k`` is
-        ``Phi'(q, e_k) - Phi'(q, 0)``."""
-        n = self.tree.n_coordinates
-        offset = self.constraints(q, np.zeros(n), t)[1] if self._rows[-1] > 2 * len(self.cuts) else 0.0
-        return np.column_stack([self.constraints(q, np.eye(n)[k], t)[1] - offset for k in range(n)])
+        """``J = dPhi/dq`` (rows, n), exact: ``Phi' = J qdot + b(t)`` (``b``: the driven joints' and cuts' prescribed
+        rates), ``J`` in one pass from the tree's rate maps at ``q`` (:meth:`CutPoints.rate_maps`,
+        :meth:`CutPoints.point_rate_map`)."""
+        points = self._points_at(q, np.zeros(self.tree.n_coordinates), t)
+        maps, sides = self.cut_points.rate_maps(points), self.cut_points
+        rows = []
+        for cut, ((jp, ep), (jc, ec)) in zip(self.cuts, self._points):
+            (vp, wp), (vc, wc) = sides.point_rate_map(points, maps, jp, ep), sides.point_rate_map(points, maps, jc, ec)
+            rows.append(vc - vp)
+            if cut.driven:
+                rows.append((wc - wp)[None, :])
+        return np.concatenate(rows)
 
     def _cut_loads(self, points: dict, loads: np.ndarray, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
         """Cut loads ``loads`` (the unknowns, stacked as the rows of :meth:`constraints`: each cut's force, global
@@ -304,12 +311,19 @@ class KinematicLoopModel:
     def project(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0, iterations: int = 3
                 ) -> tuple[np.ndarray, np.ndarray]:
         """Minimum-norm projection of ``(q, qdot)`` onto ``Phi = 0``, ``Phi' = 0`` (a few Gauss-Newton steps)."""
+        return self.project_rows(q, qdot, t, iterations)[:2]
+
+    def project_rows(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0, iterations: int = 3,
+                     rows: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`project` and ``Phi`` [m, rad] at its result; ``rows``: :meth:`constraints` at ``(q, qdot, t)``
+        when the caller has them (each evaluation of the constraints serves the step it is needed for)."""
+        phi, rate = self.constraints(q, qdot, t) if rows is None else rows
         for _ in range(iterations):
-            phi, _ = self.constraints(q, qdot, t)
             if np.max(np.abs(phi)) < PROJECTION_SKIP:
                 break
             q = q - np.linalg.lstsq(self.jacobian(q, t), phi, rcond=None)[0]
-        return q, qdot - np.linalg.lstsq(self.jacobian(q, t), self.constraints(q, qdot, t)[1], rcond=None)[0]
+            phi, rate = self.constraints(q, qdot, t)
+        return q, qdot - np.linalg.lstsq(self.jacobian(q, t), rate, rcond=None)[0], phi
 
     # -- linearisation on the constraint manifold (the algorithm: :mod:`ctmm.loop_manifold`) -----------
     def require_static(self, what: str) -> int:
@@ -455,16 +469,13 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
         qdd, _ = model.solve(y[:n], y[n:], t)
         return np.concatenate([y[n:], qdd])
 
-    def finish(y: np.ndarray, t: float) -> np.ndarray:
-        return np.concatenate(model.project(y[:n], y[n:], t)) if projection else y
-
     family, step = model.tree.deformable_family, dt if method == "rk4" else None
     check = None if family is None else (    # the tree runs' rule: a modal beam's deflection, a subsystem's size
         lambda t, y: family.check_divergence(model.tree, y[:n], float(t), step, method))
     return integrate_loop_run(
         lambda t, q_rows, qdot_rows, wall: loop_history(model, t, q_rows, qdot_rows, method, wall, evaluations[0]),
-        rate, np.concatenate([q, v]), n, t_final=t_final, dt=dt, method=method, finish=finish, rtol=rtol, atol=atol,
-        store_every=store_every, t_eval=t_eval, max_step=max_step, label=f"kinematic loop {model.name!r}",
+        rate, np.concatenate([q, v]), n, t_final=t_final, dt=dt, method=method, finish=lambda y, t: y, rtol=rtol,
+        atol=atol, store_every=store_every, t_eval=t_eval, max_step=max_step, label=f"kinematic loop {model.name!r}",
         element=model.cuts[0].name, velocity_label="qdot", model=model if projection else None, check=check)
 
 

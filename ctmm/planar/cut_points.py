@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import ModelError
 from .cut_joints import CutJoint
 from .elements import Fixed
-from .model import PlanarModel
+from .model import BUSHING, FREE, PlanarModel
 
 __all__ = ["CutPoints"]
 
@@ -158,6 +158,72 @@ class CutPoints:
             velocity = _turn(th, local)
         r = _turn(th, e)
         return points["inboard"][j] + r, points["inboard_velocity"][j] + om * np.array([-r[1], r[0]]) + velocity, r
+
+    def rate_maps(self, points: dict) -> tuple[np.ndarray, np.ndarray]:
+        """The tree's body rates as linear maps of ``qdot`` at the configuration of ``points`` (:meth:`point`):
+        ``d omega / d qdot`` (n_bodies, n) [-] and ``d v_in / d qdot`` (n_bodies, 2, n) [m] of the inboard ends
+        (:meth:`PlanarModel.body_angles` and :meth:`PlanarModel.points` differentiated in ``qdot``; a driven joint's
+        prescribed rate is their affine part, not in the maps)."""
+        m = self.tree
+        n, q, theta = m.n_coordinates, points["q"], points["theta"]
+        omega, inboard = np.zeros((m.n_bodies, n)), np.zeros((m.n_bodies, 2, n))
+        for i in range(m.n_bodies):
+            p = m.parent[i]
+            if m.theta_index[i] >= 0:
+                omega[i, m.theta_index[i]] = 1.0
+            elif p >= 0:                                # driven: the parent's rate, plus its beam end's slope
+                omega[i] = omega[p]
+                slope = m.end_slope(i)
+                omega[i, m.modal_index[p][:len(slope)]] += slope
+            if p >= 0:
+                e, local = m.end_vector[i], None
+                if p in m.beams:                        # deformed end of a flexible parent
+                    e, _ = m.beam_point_local(p, m.parent_end_index[i], q, np.zeros(n), True)
+                    local = self._attachment_shape(p, m.parent_end_index[i], q)
+                r = _turn(theta[p], e)
+                inboard[i] = inboard[p] + np.outer((-r[1], r[0]), omega[p])
+                if local is not None:
+                    inboard[i][:, m.modal_index[p]] += _turn(theta[p], local)
+            elif m.joint_kind[i] == FREE:
+                inboard[i, (0, 1), m.xy_index[i]] = 1.0
+            if m.joint_kind[i] == BUSHING:
+                inboard[i, (0, 1), m.xy_index[i]] += 1.0
+        return omega, inboard
+
+    def _attachment_shape(self, j: int, e: int, q: np.ndarray) -> np.ndarray:
+        """``d v_loc / d eta_dot`` (2, n_eta) of end ``e`` of deformable body ``j`` where a child body hangs
+        (:meth:`PlanarModel.beam_point_local` with the shortening: a second-order modal beam's ``-w^T G1 w'``)."""
+        shape = self.end_shape(j, e)
+        data = self.tree.beams[j].data
+        if not self.is_subsystem(j) and data.second_order is not None:
+            shape[0, :data.nq] -= q[self.tree.modal_index[j][:data.nq]] @ data.end_G1[e]
+        return shape
+
+    def point_rate_map(self, points: dict, maps: tuple[np.ndarray, np.ndarray], j: int, e: np.ndarray | int
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """The velocity [m/s] and angular rate [rad/s] of a side (:meth:`point`, :meth:`angle`) as linear maps of
+        ``qdot``: ``(2, n)`` and ``(n,)``, from the tree's :meth:`rate_maps` ``maps`` (their affine part, the
+        driven joints' rates, aside)."""
+        n = self.tree.n_coordinates
+        if j < 0:
+            return np.zeros((2, n)), np.zeros(n)
+        omega, inboard = maps
+        th = points["theta"][j]
+        rate = omega[j].copy()
+        if isinstance(e, np.ndarray):
+            r = _turn(th, e)
+            return inboard[j] + np.outer((-r[1], r[0]), omega[j]), rate
+        index = self.tree.modal_index[j]
+        position, _ = self.end_local(j, e, points["q"], np.zeros(n))
+        local = self.end_shape(j, e)
+        if self._foreshortens(j):                      # u' = -w^T G1 w'
+            data = self.tree.beams[j].data
+            local[0, :data.nq] -= points["q"][index[:data.nq]] @ data.end_G1[e]
+        r = _turn(th, position)
+        velocity = inboard[j] + np.outer((-r[1], r[0]), omega[j])
+        velocity[:, index] += _turn(th, local)
+        rate[index] += self.end_slope(j, e)
+        return velocity, rate
 
     def acceleration(self, points: dict, A: np.ndarray, qddot: np.ndarray, j: int, e: np.ndarray | int
                      ) -> np.ndarray:

@@ -119,9 +119,8 @@ def simulate_spatial_loops(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *
         vdot, _ = model.solve(y[:nq], y[nq:], t, inputs)
         return np.concatenate([tree.position_rates(y[None, :nq], y[None, nq:])[0], vdot])
 
-    def finish(y: np.ndarray, t: float) -> np.ndarray:
-        return np.concatenate(model.project(y[:nq], y[nq:], t)) if projection else \
-            np.concatenate([tree.normalized(y[:nq]), y[nq:]])
+    def finish(y: np.ndarray, t: float) -> np.ndarray:       # without projection (model.project_rows with it)
+        return np.concatenate([tree.normalized(y[:nq]), y[nq:]])
 
     guard = divergence_check(tree, np.concatenate([q, v]), None)      # finite, and the tree's deformable bodies
 

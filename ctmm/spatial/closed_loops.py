@@ -581,6 +581,12 @@ class SpatialKinematicLoopModel:
                 ) -> tuple[np.ndarray, np.ndarray]:
         """Minimum-norm projection of ``(q, v)`` onto ``Phi = 0``, ``Phi' = 0`` (a few Gauss-Newton steps along
         ``q (+) dx``; quaternions renormalised)."""
+        return self.project_rows(q, v, t, iterations)[:2]
+
+    def project_rows(self, q: np.ndarray, v: np.ndarray, t: float = 0.0, iterations: int = 3, rows: Any = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`project` and ``Phi`` at its result (``rows``, the constraints at ``(q, v)``, unused: they are
+        evaluated with ``J`` at the renormalised ``q``)."""
         q = self.tree.normalized(q)
         phi, rate, J = self._rows_and_jacobian(q, v, t)
         for _ in range(iterations):
@@ -588,4 +594,4 @@ class SpatialKinematicLoopModel:
                 break
             q = self.retract(q, -np.linalg.lstsq(J, phi, rcond=None)[0])
             phi, rate, J = self._rows_and_jacobian(q, v, t)
-        return q, v - np.linalg.lstsq(J, rate, rcond=None)[0]          # Phi'(q, v) = 0 (driven rates included)
+        return q, v - np.linalg.lstsq(J, rate, rcond=None)[0], phi     # Phi'(q, v) = 0 (driven rates included)
