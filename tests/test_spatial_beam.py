@@ -391,7 +391,7 @@ def _term_values(beam, ops, state, symbols=None):
                  for name in ("arm", "velocity", "rotation", "omega")}}
     if symbols is None:
         return {key: np.asarray(value)[0] for key, value in values.items()}
-    inputs = [symbols[key] for key in ("rotation", "offset", "omega", "eta", "eta_dot")] + [symbols["w0"], symbols["w1"]]
+    inputs = [symbols[key] for key in ("rotation", "offset", "omega", "eta", "eta_dot", "w0", "w1")]
     numbers = [state[key][0] for key in ("rotation", "offset", "omega", "eta", "eta_dot")] + \
         [wrench[0] for _, wrench in state["loads"]]
     function = ca.Function("terms", inputs, list(values.values()))
@@ -419,7 +419,7 @@ def test_numpy_terms_equal_the_term_by_term_ops_path_to_round_off(variant):
     state = dict(rotation=np.linalg.qr(rng.normal(size=(1, 3, 3)))[0], offset=rng.normal(size=(1, 3, 1)),
                  omega=rng.normal(size=(1, 3, 1)), eta=0.1 * rng.normal(size=(1, n, 1)),
                  eta_dot=rng.normal(size=(1, n, 1)), t=0.3, gravity=np.array([0.1, -9.81, 0.4]),
-                 loads=[(beam.points["s"], rng.normal(size=(1, 6, 1))), (beam.points["tip"], rng.normal(size=(1, 6, 1)))],
+                 loads=[(beam.points[name], rng.normal(size=(1, 6, 1))) for name in ("s", "tip")],
                  points={"tip": beam.points["tip"], "s": beam.points["s"]}, frames=("tip", "u"))
     symbols = {key: ca.SX.sym(key, *state[key].shape[1:]) for key in ("rotation", "offset", "omega", "eta", "eta_dot")}
     symbols.update(w0=ca.SX.sym("w0", 6, 1), w1=ca.SX.sym("w1", 6, 1))

@@ -297,18 +297,25 @@ def _numpy_body(data: Any, k: Mapping[str, np.ndarray], w: Any, g: Any, qv: Any,
     the modal rows' ``sum_ik Omega2_ik int Phi_i^T rho_k + 2 [omega]x_ik E[i][k] eta_dot``.  The same numbers as
     the term-by-term path up to the order of the sums in ``h_mod`` (round-off)."""
     n, rhoA = data.n, data.rhoA
-    states = _join([eta, eta_dot], -1)                                             # (..., n, 2)
-    X = np.matmul(k["E"], states)
-    X = X.reshape(X.shape[:-2] + (3, 3, n, 2))
-    Y = X[..., 0] + k["c_first"]                          # Y[i, k] = row i of Q_k = int rho_k Phi (3 x n)
-    QS = np.matmul(Y, states[..., None, :, :])            # [i, k, 0] = (Q_k eta)_i = S_ik, [i, k, 1] = P_ki
+    if eta.dtype == eta_dot.dtype:                        # one product for both (else each keeps its dtype)
+        states = _join([eta, eta_dot], -1)                                         # (..., n, 2)
+        X = np.matmul(k["E"], states)
+        X = X.reshape(X.shape[:-2] + (3, 3, n, 2))
+        E_eta, E_rate = X[..., 0], X[..., 1]              # [i, k] = E[i][k] eta, E[i][k] eta_dot
+        Y = E_eta + k["c_first"]                          # Y[i, k] = row i of Q_k = int rho_k Phi (3 x n)
+        QS = np.matmul(Y, states[..., None, :, :])        # [i, k, 0] = (Q_k eta)_i = S_ik, [i, k, 1] = P_ki
+        S_columns, P_rows = QS[..., 0], QS[..., 1]
+    else:
+        E_eta, E_rate = (np.matmul(k["E"], x).reshape(x.shape[:-2] + (3, 3, n)) for x in (eta, eta_dot))
+        Y = E_eta + k["c_first"]
+        S_columns, P_rows = (np.matmul(Y, x[..., None, :, :])[..., 0] for x in (eta, eta_dot))
     C_eta = np.matmul(k["c"], eta)
-    S = np.concatenate([QS[..., :1, :, 0] + (k["top"] + C_eta.swapaxes(-1, -2)), QS[..., 1:, :, 0]], axis=-2)
+    S = np.concatenate([S_columns[..., :1, :] + (k["top"] + C_eta.swapaxes(-1, -2)), S_columns[..., 1:, :]], axis=-2)
     trace = (S[..., 0, 0] + S[..., 1, 1] + S[..., 2, 2])[..., None, None]
     J = _E * trace - S + k["J"]
     Gamma = np.stack([Y[..., 2, 1, :] - Y[..., 1, 2, :], Y[..., 0, 2, :] - Y[..., 2, 0, :],
                       Y[..., 1, 0, :] - Y[..., 0, 1, :]], axis=-2)   # sum_k [e_k]x Q_k
-    P = QS[..., 1].swapaxes(-1, -2)
+    P = P_rows.swapaxes(-1, -2)
     trace_P = (P[..., 0, 0] + P[..., 1, 1] + P[..., 2, 2])[..., None, None]
     s = k["s0"] + np.matmul(k["b"], eta)
     s_x = skew(NUMPY, s)
@@ -326,7 +333,7 @@ def _numpy_body(data: Any, k: Mapping[str, np.ndarray], w: Any, g: Any, qv: Any,
     omega2 = np.matmul(w, w_row) - _E * np.matmul(w_row, w)
     coefficients = _join([omega2.reshape(omega2.shape[:-2] + (1, 9)),
                           (skew(NUMPY, w) * 2.0).reshape(omega2.shape[:-2] + (1, 9))], -1)
-    stacked = _join([Y.reshape(Y.shape[:-3] + (9, n)), X[..., 1].reshape(Y.shape[:-3] + (9, n))], -2)
+    stacked = _join([Y.reshape(Y.shape[:-3] + (9, n)), E_rate.reshape(E_rate.shape[:-3] + (9, n))], -2)
     h_mod = np.matmul(coefficients, stacked).swapaxes(-1, -2)
     h_mod = h_mod - np.matmul(k["bT"], g + qv * (1 / rhoA))
     h_mod = h_mod + np.matmul(k["K"], eta) + np.matmul(k["D"], eta_dot)
