@@ -150,8 +150,9 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
     M = ops.matmul(ops.matmul(T, M_b), Tt)
     h = ops.matmul(T, h_b)
     Kin, c, RF, out = {}, {}, {}, {}
+    anchors = beam.points if frames or points else {}         # (a property: built once per call, not per name)
     for name in set(points or {}) | set(frames):
-        x_e = float(beam.points[name][0])
+        x_e = float(anchors[name][0])
         Phi_e, Lam_e, G1_e = data.station(x_e)
         rho = constant(ops, [x_e, 0.0, 0.0]) + ops.matmul(constant(ops, Phi_e), eta)
         theta = ops.matmul(constant(ops, Lam_e), eta)
