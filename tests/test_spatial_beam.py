@@ -3,7 +3,9 @@ independent assumed-modes Lagrange model in 3-D, analytic frequencies with a tip
 compiled and implicit paths, connections and bad input."""
 from __future__ import annotations
 
+import copy
 import math
+from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
@@ -15,7 +17,7 @@ from ctmm.errors import ModelError
 from ctmm.flexible import ModalBeam
 from ctmm.flexible.beam import ModalForce
 from ctmm.flexible.kernel import solve_flexible
-from ctmm.ops import NUMPY
+from ctmm.ops import CASADI, NUMPY
 from ctmm.planar import Load as PlanarLoad
 from ctmm.planar import Pinned, PlanarModel, RigidBody, simulate_rk4
 from ctmm.planar.elements import FixedMounting
@@ -373,3 +375,83 @@ def test_natural_frequencies_refuse_the_one_directional_stiffening_about_a_sagge
     with pytest.raises(ModelError, match="not symmetric"):
         ctmm.natural_frequencies(hanging(True), n_modes=3)
     assert np.all(ctmm.natural_frequencies(hanging(False), n_modes=3)[1:] > 0)
+
+
+# -- the numpy path on stacked integrals equals the term-by-term path of the generated kernels ---------
+def _term_values(beam, ops, state, symbols=None):
+    """``spatial_beam_terms`` of ``beam`` at ``state`` as a flat dict of numpy arrays (casadi: evaluated)."""
+    arguments = dict(state)
+    if symbols is not None:                       # casadi: symbols in, then the function at the same numbers
+        arguments.update({key: symbol for key, symbol in symbols.items() if key in state})
+        arguments["loads"] = [(point, symbols[f"w{i}"]) for i, (point, _) in enumerate(state["loads"])]
+    terms, frames = spatial_beam_terms(ops, beam, **arguments)
+    values = {"M": terms.M, "h": terms.h, **{f"{kind}:{e}": value for kind in ("Kin", "c", "RF")
+                                            for e, value in getattr(terms, kind).items()},
+              **{f"{e}:{name}": getattr(frame, name) for e, frame in frames.items()
+                 for name in ("arm", "velocity", "rotation", "omega")}}
+    if symbols is None:
+        return {key: np.asarray(value)[0] for key, value in values.items()}
+    inputs = [symbols[key] for key in ("rotation", "offset", "omega", "eta", "eta_dot", "w0", "w1")]
+    numbers = [state[key][0] for key in ("rotation", "offset", "omega", "eta", "eta_dot")] + \
+        [wrench[0] for _, wrench in state["loads"]]
+    function = ca.Function("terms", inputs, list(values.values()))
+    return {key: np.asarray(value) for key, value in zip(values, function(*numbers))}
+
+
+@pytest.mark.parametrize("variant", ["plain", "stiffening", "wagner", "second_order", "rotary", "static_shapes"])
+def test_numpy_terms_equal_the_term_by_term_ops_path_to_round_off(variant):
+    """The numpy path (stacked integrals, one product for all ``E[i][k] eta``) against the term-by-term formulas that
+    build the generated kernels (casadi, evaluated at the same state): every option, offset, loads, points and
+    frames, a real and a complex-step state."""
+    options = {"plain": {}, "stiffening": dict(geometric_stiffening=True),
+               "wagner": dict(geometric_stiffening=True, wagner_term=True),
+               "second_order": dict(geometric_stiffening=True, second_order_inertia=True, n_axial_modes=0),
+               "rotary": dict(rotary_inertia_per_length_y=0.002, rotary_inertia_per_length_z=0.003),
+               "static_shapes": dict(static_shapes=True, damping_ratio=0.0)}[variant]
+    beam = SpatialBeam("b", **{**dict(length=1.1, mass_per_length=0.9, bending_stiffness_y=5.0, bending_stiffness_z=7.0,
+                                      n_modes_y=2, n_modes_z=2, n_torsion_modes=1, n_axial_modes=1,
+                                      torsional_stiffness=3.0, axial_stiffness=400.0, polar_inertia_per_length=0.01,
+                                      stations={"s": 0.4, "u": 0.9}, damping_ratio=0.01,
+                                      distributed_load=(0.3, math.sin, 0.2)), **options})
+    n = beam.data.n
+    beam = beam.with_modal_forces(ModalForce(force=lambda t: 0.1 * t * np.arange(1.0, n + 1), label="hook"))
+    rng = np.random.default_rng(7)
+    state = dict(rotation=np.linalg.qr(rng.normal(size=(1, 3, 3)))[0], offset=rng.normal(size=(1, 3, 1)),
+                 omega=rng.normal(size=(1, 3, 1)), eta=0.1 * rng.normal(size=(1, n, 1)),
+                 eta_dot=rng.normal(size=(1, n, 1)), t=0.3, gravity=np.array([0.1, -9.81, 0.4]),
+                 loads=[(beam.points[name], rng.normal(size=(1, 6, 1))) for name in ("s", "tip")],
+                 points={"tip": beam.points["tip"], "s": beam.points["s"]}, frames=("tip", "u"))
+    symbols = {key: ca.SX.sym(key, *state[key].shape[1:]) for key in ("rotation", "offset", "omega", "eta", "eta_dot")}
+    symbols.update(w0=ca.SX.sym("w0", 6, 1), w1=ca.SX.sym("w1", 6, 1))
+    reference = _term_values(beam, CASADI, state, symbols)
+    values = _term_values(beam, NUMPY, state)
+    assert values.keys() == reference.keys()
+    for key, value in values.items():
+        assert np.abs(value - reference[key]).max() <= 1e-14 * max(1.0, np.abs(reference[key]).max()), key
+    # a complex-step state (frequency sweeps, sensitivities): the real part the real terms, the imaginary part
+    # their directional derivative (central differences of the real path)
+    step, direction = 1e-30, rng.normal(size=(1, n, 1))
+    complex_values = _term_values(beam, NUMPY, {**state, "eta": state["eta"] + 1j * step * direction})
+    ahead, behind = (_term_values(beam, NUMPY, {**state, "eta": state["eta"] + sign * 1e-6 * direction})
+                     for sign in (1.0, -1.0))
+    for key, value in complex_values.items():
+        assert np.abs(value.real - values[key]).max() <= 1e-14 * max(1.0, np.abs(values[key]).max()), key
+        slope = (ahead[key] - behind[key]) / 2e-6             # central differences (truncation ~1e-8 relative)
+        assert np.abs(value.imag / step - slope).max() <= 1e-6 * max(1.0, np.abs(slope).max()), key
+
+
+def test_the_stacked_integrals_are_built_once_and_never_read_by_a_changed_copy():
+    beam = SpatialBeam("b", length=1.0, mass_per_length=1.0, bending_stiffness_y=1.0, bending_stiffness_z=2.0,
+                       n_modes_y=2, n_modes_z=1)
+    state = dict(rotation=np.eye(3)[None], offset=None, omega=np.ones((1, 3, 1)), eta=np.full((1, 3, 1), 0.1),
+                 eta_dot=np.ones((1, 3, 1)), t=0.0, gravity=np.array([0.0, 0.0, -9.81]))
+    first = spatial_beam_terms(NUMPY, beam, **state)[0]
+    built = dict(beam.data.memo)
+    assert built and spatial_beam_terms(NUMPY, beam, **state)[0].M.tolist() == first.M.tolist()
+    assert all(beam.data.memo[key] is value for key, value in built.items())      # not rebuilt by the second call
+    heavier = copy.copy(beam.data)                 # as the scaled views of the parametrised kernels
+    heavier.b, heavier.m = 2.0 * heavier.b, 2.0 * heavier.m
+    assert heavier.memo == {}
+    doubled = spatial_beam_terms(NUMPY, SimpleNamespace(data=heavier, points=beam.points,
+                                                        distributed_load=beam.distributed_load), **state)[0]
+    assert np.allclose(doubled.M[0, :3, 6:], 2.0 * first.M[0, :3, 6:], rtol=1e-15, atol=0.0)

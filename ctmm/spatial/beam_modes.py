@@ -203,6 +203,25 @@ class SpatialBeamData:
         self.abscissae: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}     # filled next, by station()
         self.abscissae = {float(point[0]): self.station(float(point[0])) for point in beam.points.values()}
         """``{x: (Phi (3, n), Lambda (3, n), G1 (n, n))}`` of every point of the beam (computed once)."""
+        self.memo: dict[str, Any] = {}
+        """Numbers derived from the integrals above by their users, built once (:meth:`remembered`)."""
+
+    def remembered(self, key: str, build: Any) -> Any:
+        """``build(self)``, computed on the first call with ``key`` and kept in :attr:`memo` (derived constants
+        that do not change between calls, e.g. the stacked integrals of
+        :func:`~ctmm.spatial.beam_terms.spatial_beam_terms`)."""
+        value = self.memo.get(key)
+        if value is None:
+            value = self.memo[key] = build(self)
+        return value
+
+    def __copy__(self) -> "SpatialBeamData":
+        """A shallow copy with an empty :attr:`memo` (a copy whose integrals are then changed, as the scaled views
+        of :mod:`ctmm.compiled_spatial_beam_numbers`, never reads the original's derived numbers)."""
+        out = object.__new__(type(self))
+        out.__dict__.update(self.__dict__)
+        out.memo = {}
+        return out
 
     def direction_shapes(self, direction: str, x: Any, derivative: int = 0) -> np.ndarray:
         """Shapes of one direction (``"y"``, ``"z"`` bending; ``"t"`` twist, ``"a"`` axial) or their

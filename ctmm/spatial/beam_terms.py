@@ -54,7 +54,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..ops import Ops
+from ..ops import NUMPY, Ops
 from ..protocol import BodyTerms
 from .beam_second_order import second_order_deltas
 from .frames import axis_rotation, block_diagonal, column, constant, cross, entry, skew
@@ -133,6 +133,76 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
     g = ops.matmul(Rt, constant(ops, gravity))
     qv = constant(ops, [float(f(t)) for f in beam.distributed_load])
     eye3 = ops.eye(3)
+    e1 = constant(ops, _E[:, 0])
+    if ops.name == "numpy":                        # the same terms on stacked integrals (_numpy_body)
+        M_b, h_b = _numpy_body(data, data.remembered("numpy_terms", _numpy_constants), w, g, qv, eta, eta_dot, t)
+    else:
+        M_b, h_b = _ops_body(ops, data, w, g, qv, eta, eta_dot, t)
+    if loads:
+        load_lin, load_ang, load_mod = _load_rows(ops, data, Rt, eta, loads)
+        h_b = h_b + ops.block([[load_lin], [load_ang], [load_mod]])
+    if data.second_order is not None:                  # the mass points' shortening (beam_second_order.py)
+        dM, dh = second_order_deltas(ops, data, omega=w, gravity=g, load=qv, eta=eta, eta_dot=eta_dot)
+        M_b, h_b = M_b + dM, h_b + dh
+    T = _turn(ops, R, n)
+    T6 = ops.sub(T, slice(0, 6), slice(0, 6))
+    Tt = ops.transpose(T)
+    M = ops.matmul(ops.matmul(T, M_b), Tt)
+    h = ops.matmul(T, h_b)
+    Kin, c, RF, out = {}, {}, {}, {}
+    anchors = beam.points if frames or points else {}         # (a property: built once per call, not per name)
+    for name in set(points or {}) | set(frames):
+        x_e = float(anchors[name][0])
+        Phi_e, Lam_e, G1_e = data.station(x_e)
+        rho = constant(ops, [x_e, 0.0, 0.0]) + ops.matmul(constant(ops, Phi_e), eta)
+        theta = ops.matmul(constant(ops, Lam_e), eta)
+        theta_dot = ops.matmul(constant(ops, Lam_e), eta_dot)
+        Theta, second, first = _rotation_jacobian(ops, theta)
+        ThetaLam = ops.matmul(Theta, constant(ops, Lam_e))
+        rho_dot = ops.matmul(constant(ops, Phi_e), eta_dot)
+        relative = ops.matmul(Theta, theta_dot)
+        Phi_u, rate_term = constant(ops, Phi_e), None
+        if data.second_order is not None:              # the point moves with the shortening (beam_second_order.py)
+            G1_eta, G1_rate = ops.matmul(constant(ops, G1_e), eta), ops.matmul(constant(ops, G1_e), eta_dot)
+            rho = rho + e1 * (ops.matmul(ops.transpose(G1_eta), eta) * -0.5)
+            rho_dot = rho_dot - e1 * ops.matmul(ops.transpose(G1_eta), eta_dot)
+            Phi_u = Phi_u - ops.matmul(e1, ops.transpose(G1_eta))
+            rate_term = e1 * (ops.matmul(ops.transpose(G1_rate), eta_dot) * -1.0)
+        if name in (points or {}):
+            K_b = ops.block([[eye3, skew(ops, rho) * -1.0, Phi_u],
+                             [ops.zeros(3, 3), eye3, ThetaLam]])
+            tx, ty, tz = (entry(ops, theta_dot, i) for i in range(3))
+            spin = cross(ops, constant(ops, _E[:, 2]) * tz, second) * ty + cross(
+                ops, constant(ops, _E[:, 2]) * tz + second * ty, first) * tx
+            c_lin = cross(ops, w, cross(ops, w, rho)) + cross(ops, w, rho_dot) * 2.0
+            c_b = ops.block([[c_lin if rate_term is None else c_lin + rate_term],
+                             [cross(ops, w, relative) + spin]])
+            RF_b = ops.transpose(K_b)                  # virtual work (with the option: -e1 eta^T G1 in Phi_u)
+            if data.stiffening and data.second_order is None:
+                RF_b = RF_b - ops.block([[ops.zeros(6, 6)],
+                                         [ops.block([[ops.matmul(constant(ops, G1_e), eta), ops.zeros(n, 5)]])]])
+            Kin[name] = ops.matmul(ops.matmul(T6, K_b), Tt)
+            c[name] = ops.matmul(T6, c_b)
+            RF[name] = ops.matmul(ops.matmul(T, RF_b), ops.transpose(T6))
+        if name in frames:
+            arm = ops.matmul(R, rho)
+            world_omega = ops.zeros(3, 1) if omega is None else omega
+            point_rotation = ops.matmul(R, ops.matmul(axis_rotation(ops, _E[:, 2], entry(ops, theta, 2)), ops.matmul(
+                axis_rotation(ops, _E[:, 1], entry(ops, theta, 1)), axis_rotation(ops, _E[:, 0], entry(ops, theta, 0)))))
+            out[name] = PointFrame(arm, cross(ops, world_omega, arm) + ops.matmul(R, rho_dot), point_rotation,
+                                   world_omega + ops.matmul(R, relative))
+    terms = BodyTerms(M=M, h=h, Kin=Kin, c=c, RF=RF)
+    if offset is not None:
+        terms = _about_inboard(ops, terms, offset, omega, n)
+    return terms, out
+
+
+def _ops_body(ops: Ops, data: Any, w: Any, g: Any, qv: Any, eta: Any, eta_dot: Any,
+              t: float) -> tuple[Any, Any]:
+    """``(M_b, h_b)`` of :func:`spatial_beam_terms` in frame axes, about the root, without applied loads and the
+    second-order terms (any :class:`~ctmm.ops.Ops`; the module docstring's formulas term by term)."""
+    n, rhoA = data.n, data.rhoA
+    eye3 = ops.eye(3)
     Bmat, Cmat = constant(ops, data.b), constant(ops, data.c)
     Ee = [[constant(ops, data.E[i][k]) for k in range(3)] for i in range(3)]
     E_eta = [[ops.matmul(Ee[i][k], eta) for k in range(3)] for i in range(3)]
@@ -192,67 +262,120 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
         h_mod = h_mod + G2_eta * axial + ops.matmul(constant(ops, data.G3), eta) * (
             (w_parts[1] * w_parts[1] + w_parts[2] * w_parts[2]) * rhoA)
         modal_left = lower_left - ops.matmul(ops.matmul(stiff, eta), ops.transpose(e1))
-    if loads:
-        load_lin, load_ang, load_mod = _load_rows(ops, data, Rt, eta, loads)
-        h_lin, h_ang, h_mod = h_lin + load_lin, h_ang + load_ang, h_mod + load_mod
     M_b = ops.block([[eye3 * data.m, s_x * -1.0, Bmat],
                      [s_x, J, Gamma + e1_bt],
                      [modal_left, ops.transpose(Gamma) + ops.transpose(e1_bt),
                       constant(ops, data.modal_mass)]])
-    h_b = ops.block([[h_lin], [h_ang], [h_mod]])
-    if data.second_order is not None:                  # the mass points' shortening (beam_second_order.py)
-        dM, dh = second_order_deltas(ops, data, omega=w, gravity=g, load=qv, eta=eta, eta_dot=eta_dot)
-        M_b, h_b = M_b + dM, h_b + dh
-    T6 = block_diagonal(ops, R, R, 3, 3)
-    T = ops.block([[T6, ops.zeros(6, n)], [ops.zeros(n, 6), ops.eye(n)]])
-    Tt = ops.transpose(T)
-    M = ops.matmul(ops.matmul(T, M_b), Tt)
-    h = ops.matmul(T, h_b)
-    Kin, c, RF, out = {}, {}, {}, {}
-    for name in set(points or {}) | set(frames):
-        x_e = float(beam.points[name][0])
-        Phi_e, Lam_e, G1_e = data.station(x_e)
-        rho = constant(ops, [x_e, 0.0, 0.0]) + ops.matmul(constant(ops, Phi_e), eta)
-        theta = ops.matmul(constant(ops, Lam_e), eta)
-        theta_dot = ops.matmul(constant(ops, Lam_e), eta_dot)
-        Theta, second, first = _rotation_jacobian(ops, theta)
-        ThetaLam = ops.matmul(Theta, constant(ops, Lam_e))
-        rho_dot = ops.matmul(constant(ops, Phi_e), eta_dot)
-        relative = ops.matmul(Theta, theta_dot)
-        Phi_u, rate_term = constant(ops, Phi_e), None
-        if data.second_order is not None:              # the point moves with the shortening (beam_second_order.py)
-            G1_eta, G1_rate = ops.matmul(constant(ops, G1_e), eta), ops.matmul(constant(ops, G1_e), eta_dot)
-            rho = rho + e1 * (ops.matmul(ops.transpose(G1_eta), eta) * -0.5)
-            rho_dot = rho_dot - e1 * ops.matmul(ops.transpose(G1_eta), eta_dot)
-            Phi_u = Phi_u - ops.matmul(e1, ops.transpose(G1_eta))
-            rate_term = e1 * (ops.matmul(ops.transpose(G1_rate), eta_dot) * -1.0)
-        if name in (points or {}):
-            K_b = ops.block([[eye3, skew(ops, rho) * -1.0, Phi_u],
-                             [ops.zeros(3, 3), eye3, ThetaLam]])
-            tx, ty, tz = (entry(ops, theta_dot, i) for i in range(3))
-            spin = cross(ops, constant(ops, _E[:, 2]) * tz, second) * ty + cross(
-                ops, constant(ops, _E[:, 2]) * tz + second * ty, first) * tx
-            c_lin = cross(ops, w, cross(ops, w, rho)) + cross(ops, w, rho_dot) * 2.0
-            c_b = ops.block([[c_lin if rate_term is None else c_lin + rate_term],
-                             [cross(ops, w, relative) + spin]])
-            RF_b = ops.transpose(K_b)                  # virtual work (with the option: -e1 eta^T G1 in Phi_u)
-            if data.stiffening and data.second_order is None:
-                RF_b = RF_b - ops.block([[ops.zeros(6, 6)],
-                                         [ops.block([[ops.matmul(constant(ops, G1_e), eta), ops.zeros(n, 5)]])]])
-            Kin[name] = ops.matmul(ops.matmul(T6, K_b), Tt)
-            c[name] = ops.matmul(T6, c_b)
-            RF[name] = ops.matmul(ops.matmul(T, RF_b), ops.transpose(T6))
-        if name in frames:
-            arm = ops.matmul(R, rho)
-            world_omega = ops.zeros(3, 1) if omega is None else omega
-            point_rotation = ops.matmul(R, ops.matmul(axis_rotation(ops, _E[:, 2], entry(ops, theta, 2)), ops.matmul(
-                axis_rotation(ops, _E[:, 1], entry(ops, theta, 1)), axis_rotation(ops, _E[:, 0], entry(ops, theta, 0)))))
-            out[name] = PointFrame(arm, cross(ops, world_omega, arm) + ops.matmul(R, rho_dot), point_rotation,
-                                   world_omega + ops.matmul(R, relative))
-    terms = BodyTerms(M=M, h=h, Kin=Kin, c=c, RF=RF)
-    if offset is not None:
-        terms = _about_inboard(ops, terms, offset, omega, n)
-    return terms, out
+    return M_b, ops.block([[h_lin], [h_ang], [h_mod]])
+
+
+
+def _numpy_constants(data: Any) -> dict[str, np.ndarray]:
+    """The integrals of ``data`` stacked for :func:`_numpy_body` (numpy constants, read-only: shared by calls)."""
+    n = data.n
+    out = {
+        "E": np.concatenate([data.E[i][k] for i in range(3) for k in range(3)]),        # (9n, n), rows (i, k, a)
+        "c_first": np.zeros((3, 3, n)),                     # c_i in the (i, k = 0) rows: Q_k row i = E[i][k] eta + ...
+        "b": data.b, "c": data.c, "bT": data.b.T.copy(), "b_r": data.b_r,
+        "s0": np.array([[data.first_moment], [0.0], [0.0]]),
+        "top": np.array([[data.second_moment, 0.0, 0.0]]),
+        "J": np.diag([data.jp * data.L, 0.0, 0.0]) + np.diag(data.rotary * data.L),
+        "e1_bt": np.outer(_E[:, 0], data.b_t) + data.b_r,   # (3, n): twist and bending sections
+        "bt_row": data.b_t.reshape(1, n), "mass": np.eye(3) * data.m, "modal_mass": data.modal_mass,
+        "K": data.K_total, "D": data.D_total, "G2": data.G2, "G3": data.G3,
+        "stiff": data.G2 * data.rhoA,
+    }
+    out["c_first"][:, 0, :] = data.c
+    for value in out.values():
+        value.flags.writeable = False
+    return out
+
+
+def _numpy_body(data: Any, k: Mapping[str, np.ndarray], w: Any, g: Any, qv: Any, eta: Any, eta_dot: Any,
+                t: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_ops_body` on numpy batches with the integrals stacked (``k``: :func:`_numpy_constants`): one
+    product gives every ``E[i][k] eta`` and ``E[i][k] eta_dot``, one the columns of ``S`` and rows of ``P``, one
+    the modal rows' ``sum_ik Omega2_ik int Phi_i^T rho_k + 2 [omega]x_ik E[i][k] eta_dot``.  The same numbers as
+    the term-by-term path up to the order of the sums in ``h_mod`` (round-off)."""
+    n, rhoA = data.n, data.rhoA
+    if eta.dtype == eta_dot.dtype:                        # one product for both (else each keeps its dtype)
+        states = _join([eta, eta_dot], -1)                                         # (..., n, 2)
+        X = np.matmul(k["E"], states)
+        X = X.reshape(X.shape[:-2] + (3, 3, n, 2))
+        E_eta, E_rate = X[..., 0], X[..., 1]              # [i, k] = E[i][k] eta, E[i][k] eta_dot
+        Y = E_eta + k["c_first"]                          # Y[i, k] = row i of Q_k = int rho_k Phi (3 x n)
+        QS = np.matmul(Y, states[..., None, :, :])        # [i, k, 0] = (Q_k eta)_i = S_ik, [i, k, 1] = P_ki
+        S_columns, P_rows = QS[..., 0], QS[..., 1]
+    else:
+        E_eta, E_rate = (np.matmul(k["E"], x).reshape(x.shape[:-2] + (3, 3, n)) for x in (eta, eta_dot))
+        Y = E_eta + k["c_first"]
+        S_columns, P_rows = (np.matmul(Y, x[..., None, :, :])[..., 0] for x in (eta, eta_dot))
+    C_eta = np.matmul(k["c"], eta)
+    S = np.concatenate([S_columns[..., :1, :] + (k["top"] + C_eta.swapaxes(-1, -2)), S_columns[..., 1:, :]], axis=-2)
+    trace = (S[..., 0, 0] + S[..., 1, 1] + S[..., 2, 2])[..., None, None]
+    J = _E * trace - S + k["J"]
+    Gamma = np.stack([Y[..., 2, 1, :] - Y[..., 1, 2, :], Y[..., 0, 2, :] - Y[..., 2, 0, :],
+                      Y[..., 1, 0, :] - Y[..., 0, 1, :]], axis=-2)   # sum_k [e_k]x Q_k
+    P = P_rows.swapaxes(-1, -2)
+    trace_P = (P[..., 0, 0] + P[..., 1, 1] + P[..., 2, 2])[..., None, None]
+    s = k["s0"] + np.matmul(k["b"], eta)
+    s_x = skew(NUMPY, s)
+    e1 = _E[None, :, :1]
+    twist_rate = np.matmul(k["bt_row"], eta_dot)
+    Jw = np.matmul(J, w)
+    h_lin = cross(NUMPY, w, cross(NUMPY, w, s)) + cross(NUMPY, w, np.matmul(k["b"], eta_dot)) * 2.0 - g * data.m - \
+        qv * data.L
+    section_rate = np.matmul(k["b_r"], eta_dot)
+    h_ang = (cross(NUMPY, w, Jw) + cross(NUMPY, w, e1) * twist_rate + cross(NUMPY, w, section_rate)
+             + (w * trace_P - np.matmul(P.swapaxes(-1, -2), w)) * 2.0 - cross(NUMPY, s, g)
+             - cross(NUMPY, s, qv) * (1 / rhoA))
+    # modal rows: sum_ik Omega2_ik Q_k row i + 2 [omega]x_ik E[i][k] eta_dot in one product
+    w_row = w.swapaxes(-1, -2)
+    omega2 = np.matmul(w, w_row) - _E * np.matmul(w_row, w)
+    coefficients = _join([omega2.reshape(omega2.shape[:-2] + (1, 9)),
+                          (skew(NUMPY, w) * 2.0).reshape(omega2.shape[:-2] + (1, 9))], -1)
+    stacked = _join([Y.reshape(Y.shape[:-3] + (9, n)), E_rate.reshape(E_rate.shape[:-3] + (9, n))], -2)
+    h_mod = np.matmul(coefficients, stacked).swapaxes(-1, -2)
+    h_mod = h_mod - np.matmul(k["bT"], g + qv * (1 / rhoA))
+    h_mod = h_mod + np.matmul(k["K"], eta) + np.matmul(k["D"], eta_dot)
+    for _, force in data.forces:
+        h_mod = h_mod - np.asarray(force(t), dtype=float).reshape(n, 1)
+    modal_left = k["bT"]
+    if data.stiffening:
+        h_mod = h_mod + np.matmul(k["G2"], eta) * (g[..., :1, :1] * rhoA + qv[..., :1, :1]) + np.matmul(
+            k["G3"], eta) * ((w[..., 1:2, :1] * w[..., 1:2, :1] + w[..., 2:3, :1] * w[..., 2:3, :1]) * rhoA)
+        modal_left = modal_left - np.matmul(np.matmul(k["stiff"], eta), e1.swapaxes(-1, -2))
+    upper = np.broadcast_shapes(J.shape[:-2], Gamma.shape[:-2], s_x.shape[:-2], modal_left.shape[:-2])
+    M_b = np.empty(upper + (6 + n, 6 + n), dtype=np.result_type(J, Gamma, s_x, modal_left))
+    M_b[..., :3, :3] = k["mass"]
+    M_b[..., :3, 3:6] = -s_x
+    M_b[..., :3, 6:] = k["b"]
+    M_b[..., 3:6, :3] = s_x
+    M_b[..., 3:6, 3:6] = J
+    M_b[..., 3:6, 6:] = Gamma + k["e1_bt"]
+    M_b[..., 6:, :3] = modal_left
+    M_b[..., 6:, 3:6] = Gamma.swapaxes(-1, -2) + k["e1_bt"].T
+    M_b[..., 6:, 6:] = k["modal_mass"]
+    return M_b, _join([h_lin, h_ang, h_mod], -2)
+
+
+def _join(parts: Sequence[np.ndarray], axis: int) -> np.ndarray:
+    """Numpy batches joined along ``axis`` (-1 or -2), their batch axes broadcast when they differ."""
+    if len({part.shape[:-2] for part in parts}) > 1:
+        parts = [np.broadcast_to(part, np.broadcast_shapes(*(p.shape[:-2] for p in parts)) + part.shape[-2:])
+                 for part in parts]
+    return np.concatenate(parts, axis=axis)
+
+
+def _turn(ops: Ops, R: Any, n: int) -> Any:
+    """``T = diag(R, R, I_n)`` (frame axes to world axes of the body's coordinates)."""
+    if ops.name == "numpy":                       # the same matrix, filled in place of the block assembly
+        T = np.zeros(R.shape[:-2] + (6 + n, 6 + n), dtype=R.dtype)
+        T[..., :3, :3] = R
+        T[..., 3:6, 3:6] = R
+        T[..., range(6, 6 + n), range(6, 6 + n)] = 1.0
+        return T
+    return ops.block([[block_diagonal(ops, R, R, 3, 3), ops.zeros(6, n)], [ops.zeros(n, 6), ops.eye(n)]])
 
 
 def _load_rows(ops: Ops, data: Any, Rt: Any, eta: Any, loads: Sequence[tuple[np.ndarray, Any]]
@@ -298,7 +421,6 @@ def beam_load_vector(beam: Any, rotation: np.ndarray, offset: np.ndarray, eta: n
         Modal coordinates.
     loads : sequence of (point (3,) body axes, wrench (6,) ``[f ; m]`` world axes [N, N m])
     """
-    from ..ops import NUMPY
 
     n = beam.data.n
     if not loads:
@@ -321,8 +443,14 @@ def _about_inboard(ops: Ops, terms: BodyTerms, offset: Any, omega: Any, n: int) 
     """Terms about the origin ``O = P + offset`` moved to the inboard point ``P``: ``x_O = Tx x_P + c``,
     ``Tx = diag(X(offset), I_n)``, ``c = [omega x (omega x offset) ; 0 ; 0]``."""
     eye3 = ops.eye(3)
-    X = ops.block([[eye3, skew(ops, offset) * -1.0], [ops.zeros(3, 3), eye3]])
-    Tx = ops.block([[X, ops.zeros(6, n)], [ops.zeros(n, 6), ops.eye(n)]])
+    if ops.name == "numpy":                       # the same matrix, filled in place of the block assembly
+        offset_x = skew(ops, offset)
+        Tx = np.zeros(offset_x.shape[:-2] + (6 + n, 6 + n), dtype=offset_x.dtype)
+        Tx[..., range(6 + n), range(6 + n)] = 1.0
+        Tx[..., :3, 3:6] = -offset_x
+    else:
+        X = ops.block([[eye3, skew(ops, offset) * -1.0], [ops.zeros(3, 3), eye3]])
+        Tx = ops.block([[X, ops.zeros(6, n)], [ops.zeros(n, 6), ops.eye(n)]])
     Txt = ops.transpose(Tx)
     if omega is None:
         shift = None
@@ -342,7 +470,6 @@ def beam_energy(beam: Any, rotation: np.ndarray, origin: np.ndarray, velocity: n
     ``origin, velocity, omega (B, 3, 1)`` (root position and velocity, frame angular velocity, world axes),
     ``eta, eta_dot (B, n)``.  Kinetic: ``1/2 V^T M_b V`` with ``V = [R^T v ; R^T omega ; eta_dot]`` and the
     mass matrix without geometric stiffening (the exact kinetic energy of the modal kinematics)."""
-    from ..ops import NUMPY
 
     data = beam.data
     B = eta.shape[0]
