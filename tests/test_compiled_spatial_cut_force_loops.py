@@ -338,18 +338,14 @@ def test_the_generated_runs_store_the_numpy_cut_loads_row_by_row(index):
     """The generated RK4's stored cut forces and moments (output by its kernel, ``F`` and ``M`` of
     :func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop`) = the numpy formula at the same stored
     states, row by row, for every cut kind (a law's moment, a drive's moment and force in them): to 1e-12 of the
-    largest load (measured <= 1.5e-14); the generated Newmark scheme's likewise on the spherical law and the driven
-    revolute cut (its rows from the mapped closed-loop function)."""
+    largest load (measured <= 1.5e-14).  The generated schemes store the same ``M`` (the closed-loop function mapped
+    over their rows): tests/test_compiled_spatial_loop_schemes.py against the numpy scheme."""
     from ctmm.compiled_spatial_kinematic_loops import simulate_spatial_kinematic_loops_generated
-    from ctmm.compiled_spatial_loop_schemes import simulate_spatial_loop_scheme_generated
 
     loop, q, v = _stored_load_scenes()[index]
-    runs = [simulate_spatial_kinematic_loops_generated(loop, q, v, t_final=0.02, dt=1e-3)]
-    if index >= 3:
-        runs.append(simulate_spatial_loop_scheme_generated(loop, q, v, t_final=0.02, dt=2e-3, scheme="newmark")[0])
-    for run in runs:
-        forces, moments = _numpy_stored_loads(loop, run)
-        scale = max(1.0, np.abs(forces).max(), np.abs(moments).max())
-        assert np.abs(moments).max() > 1e-2 and run.cut_force.shape == forces.shape == (len(run.t), 1, 3)
-        assert np.abs(run.cut_force - forces).max() <= 1e-12 * scale, run.method
-        assert np.abs(run.cut_moment - moments).max() <= 1e-12 * scale, run.method
+    run = simulate_spatial_kinematic_loops_generated(loop, q, v, t_final=0.02, dt=1e-3)
+    forces, moments = _numpy_stored_loads(loop, run)
+    scale = max(1.0, np.abs(forces).max(), np.abs(moments).max())
+    assert np.abs(moments).max() > 1e-2 and run.cut_force.shape == forces.shape == (len(run.t), 1, 3)
+    assert np.abs(run.cut_force - forces).max() <= 1e-12 * scale
+    assert np.abs(run.cut_moment - moments).max() <= 1e-12 * scale
