@@ -248,7 +248,8 @@ class CompiledKinematicLoops:
         from the outputs function); the rows after the first non-finite block are not computed."""
         size = self.state_size - 2
         y0 = np.concatenate([q0, v0, [0.0, 0.0]])
-        _, phi, _, G = self._outputs(y0[:size], self.parameters, 0.0)
+        outputs = self._outputs(y0[:size], self.parameters, 0.0)      # lambda, Phi, Phi', G (and more)
+        phi, G = outputs[1], outputs[3]
         y0[size] = float(np.max(np.abs(np.asarray(phi))))
         y0[size + 1] = compliance_condition(np.asarray(G))
         states = run_blocks(self._blocks, self._stride, self._step, self.store_every, y0[:, None], np.zeros(0), dt,

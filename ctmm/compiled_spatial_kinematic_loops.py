@@ -36,7 +36,9 @@ revolute and universal cuts, turned with the cross-section by :mod:`ctmm.compile
 path.
 
 State, failures and result as :mod:`ctmm.compiled_kinematic_loops` (residual and condition carried in the state,
-:class:`~ctmm.errors.SimulationError` with time, cut joint and partial result).  Refused (:class:`ModelError`, by
+:class:`~ctmm.errors.SimulationError` with time, cut joint and partial result); the stored rows' cut loads and drift
+are outputs of the generated library (``F``, ``M``, ``Phi``, ``Phi'`` of :func:`symbolic_spatial_closed_loop` mapped
+over the rows in one call).  Refused (:class:`ModelError`, by
 name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses with ``time_signals=True`` (the tree's
 loads may carry :mod:`ctmm.signals` with a symbolic form, stated at the sweep's time symbol; user callables refused),
 laws casadi cannot express and actuations or drives without a symbolic form (user callables:
@@ -57,7 +59,7 @@ from .compiled_kinematic_loops import (CompiledKinematicLoops, first_failure, ge
                                        cut_load_refusal, projected_rk4_step, symbolic_time_signal,
                                        tree_refusal)
 from .compiled_spatial import position_rates, spatial_compile_refusal
-from .compiled_spherical_cut_law import rotation_limit_note, spherical_law_cuts, symbolic_spherical_law_moment
+from .compiled_spherical_cut_law import rotation_limit_note, symbolic_spherical_law_moment
 from .errors import SimulationError
 from .compiled_spatial_cut_points import (SymbolicStates, deformable_sides, symbolic_deformable_frame,
                                           symbolic_deformable_point)
@@ -106,10 +108,12 @@ def spatial_cut_load_refusal(cut: Any) -> str:
 def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuators: Sequence[str] = ()
                                  ) -> tuple[Any, Any, Any, Any]:
     """The closed-loop velocity rates of a spatial kinematic loop model on symbols (module docstring):
-    ``closed(q, v, u, p, t) -> (v', condition, cut unknowns, Phi, Phi', G, F)`` with the actuator values ``u`` of
+    ``closed(q, v, u, p, t) -> (v', condition, cut unknowns, Phi, Phi', G, F, M)`` with the actuator values ``u`` of
     ``extra_actuators`` (the tree's port actuators, :mod:`ctmm.spatial.ports`, and the undriven revolute and
     prismatic cuts' ``"<cut>.torque"`` / ``"<cut>.force"``, applied with the cut loads), ``p`` empty, ``F`` the cuts'
-    forces on the child [N] (3 per cut, world axes; the ``"<cut>.force_x|y|z"`` sensors);
+    forces on the child [N] (3 per cut, world axes; the ``"<cut>.force_x|y|z"`` sensors), ``M`` their moments on the
+    child [N m] (3 per cut, world axes: the unknowns' moments, a driven revolute cut's drive moment included, plus a
+    spherical cut's law moment -- a run's stored ``cut_force``, ``cut_moment``, :func:`loop_simulation`);
     ``constraint(q, v, t) -> (Phi, Phi', J)``; ``cut_coordinates(q, v, t) -> [s_1, s_1', ...]`` (0 for cuts without
     a coordinate); ``law_moments(q, v, t) -> [m_1 ; m_2 ; ...]`` (3 per cut: a spherical cut's law moment on the
     child [N m], world axes, :meth:`SpatialKinematicLoopModel.law_moments`; zeros for the other cuts); the last two
@@ -208,12 +212,12 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
                 rate.append(value_rate - symbolic_time_signal(cut.rate, t_))
         return ca.vertcat(*phi), ca.vertcat(*rate)
 
-    def wrenches(states: list, values: Any, t_: Any, spherical_laws: Any, constraint_forces: list) -> dict:
+    def wrenches(states: list, values: Any, t_: Any, spherical_laws: Any, constraint_loads: list) -> dict:
         """The cut loads of the unknowns ``values`` and the cuts' laws and actuations at time ``t_`` as wrenches
         ``(point, [f ; m] world)`` per body (``spherical_laws``: 3 per cut, the spherical laws' moments, formed once
-        outside the ``1 + m`` load cases); each cut's force on the child from the unknowns alone appended to
-        ``constraint_forces`` (:meth:`SpatialKinematicLoopModel.cut_loads`: a driven prismatic cut's drive force
-        included, laws and actuations not)."""
+        outside the ``1 + m`` load cases); each cut's ``(force, moment)`` on the child from the unknowns alone
+        appended to ``constraint_loads`` (:meth:`SpatialKinematicLoopModel.cut_loads`: a driven cut's drive force or
+        moment included, laws and actuations not)."""
         out: dict[int, list] = {}
         row = 0
         for k, (cut, (parent, child), frame) in enumerate(zip(model.cuts, sides, frames)):
@@ -231,6 +235,7 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
                 b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(axes(states, parent)[0], ca.DM(b_local))
                 moment = moment + values[row] * ca.cross(u, b)
                 row += 1
+            constraint, constraint_moment = force, moment
             along = None
             if cut.driven:                          # the drive's load along the coordinate: an unknown
                 along = values[row]
@@ -243,15 +248,15 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
                 along = along + port_loads.get(cut.name, 0.0)
                 if cut.law is not None:
                     along = along - cut.law.force(value - cut.rest, value_rate)
-            constraint = force
             if along is not None:
                 a = coordinate(states, cut, parent, child)[2]
                 if cut.kind == "revolute":
                     moment = moment + along * a
+                    constraint_moment = moment if cut.driven else constraint_moment
                 else:                               # prismatic: a force at the child point
                     force = force + along * a
                     constraint = force if cut.driven else constraint
-            constraint_forces.append(constraint)
+            constraint_loads.append((constraint, constraint_moment))
             load = ca.vertcat(force, moment)
             out.setdefault(child[0], []).append((child[1], load))
             if parent[0] >= 0:                      # prismatic: the force acts at the child point
@@ -264,8 +269,8 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     moments = [law_moment(states, cut, parent, child) if cut.kind == "spherical" and cut.law is not None
                else ca.DM.zeros(3) for cut, (parent, child) in zip(model.cuts, sides)]
     spherical_laws = ca.SX.sym("spherical_laws", 3 * len(model.cuts))
-    constraint_forces: list = []
-    loads = wrenches(states, lam, t, spherical_laws, constraint_forces)
+    constraint_loads: list = []
+    loads = wrenches(states, lam, t, spherical_laws, constraint_loads)
     for body, entries in tree_wrenches.items():
         loads.setdefault(body, []).extend(entries)
     # the tree's load signals and driven joints on the time symbol
@@ -290,9 +295,10 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     alpha = model.baumgarte
     forces = ca.solve(G, -c0 - 2.0 * alpha * phi_dot - alpha * alpha * phi)
     condition = ca.norm_fro(G) * ca.norm_fro(ca.solve(G, ca.SX.eye(m)))
-    child_forces = ca.substitute(ca.vertcat(*constraint_forces), lam, forces)
+    child_forces, child_moments = ca.substitute([ca.vertcat(*(f for f, _ in constraint_loads)),
+                                                 ca.vertcat(*(mu for _, mu in constraint_loads))], [lam], [forces])
     closed = ca.Function("closed", [q, v, u, p, t], [v_dot0 + ca.mtimes(D, forces), condition, forces, phi,
-                                                      phi_dot, G, child_forces])
+                                                      phi_dot, G, child_forces, child_moments + law_values])
     coordinates = []                                # at time t: driven tree joints move them
     for cut, (parent, child) in zip(model.cuts, sides):
         value, value_rate, _ = coordinate(states, cut, parent, child) if cut.kind in ("revolute", "prismatic") \
@@ -387,30 +393,33 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
 
     def _build(self) -> tuple[Any, list]:
         """``(step, [outputs])`` on symbols: the RK4 step with projection and ``outputs(y, p, t) -> (lambda, Phi,
-        Phi', G)``."""
+        Phi', G, F, M)`` (``F``, ``M``: the stored cut loads, :func:`symbolic_spatial_closed_loop`)."""
         import casadi as ca
 
         tree = self.model.tree
         nq, nv = tree.n_positions, tree.n_velocities
         closed, constraint, _, _ = symbolic_spatial_closed_loop(self.model)
         q, v, p, t = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("p", 0), ca.SX.sym("t")
-        v_dot, condition, forces, phi, phi_dot, G, _ = closed(q, v, ca.DM.zeros(0), p, t)
+        v_dot, condition, forces, phi, phi_dot, G, child_forces, child_moments = closed(q, v, ca.DM.zeros(0), p, t)
         y = ca.vertcat(q, v)
         rate = ca.Function("closed_rate", [y, p, t], [ca.vertcat(position_rates(tree, q, v), v_dot), condition])
-        outputs = ca.Function("outputs", [y, p, t], [forces, phi, phi_dot, G])
+        outputs = ca.Function("outputs", [y, p, t], [forces, phi, phi_dot, G, child_forces, child_moments])
 
         project = symbolic_spatial_projection(tree, constraint, self.iterations)
         return projected_rk4_step(rate, project, nq + nv, 0), [outputs]
 
-    def cut_history(self, t: np.ndarray, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Cut unknowns (rows, m), ``Phi`` and ``Phi'`` (rows, m) of stored times ``t`` [s] and states, by the
-        generated function mapped over the rows (one call)."""
-        rows, m, size = len(t), self.model.n_constraints, self.state_size - 2
+    def cut_history(self, t: np.ndarray, states: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Cut forces [N] and moments [N m] on the children (rows, n_cuts, 3; world axes, as
+        :func:`loop_simulation` stores them), ``Phi`` and ``Phi'`` (rows, m) of stored times ``t`` [s] and states, by
+        the generated function mapped over the rows (one call)."""
+        rows, cuts, m, size = len(t), len(self.model.cuts), self.model.n_constraints, self.state_size - 2
         if rows == 0:
-            return np.zeros((0, m)), np.zeros((0, m)), np.zeros((0, m))
-        forces, phi, phi_dot, _ = self._outputs.map(rows)(states[:, :size].T, np.zeros((0, rows)),
-                                                          np.asarray(t, dtype=float)[None, :])
-        return np.asarray(forces).T.copy(), np.asarray(phi).T.copy(), np.asarray(phi_dot).T.copy()
+            return np.zeros((0, cuts, 3)), np.zeros((0, cuts, 3)), np.zeros((0, m)), np.zeros((0, m))
+        _, phi, phi_dot, _, forces, moments = self._outputs.map(rows)(states[:, :size].T, np.zeros((0, rows)),
+                                                                      np.asarray(t, dtype=float)[None, :])
+        return (np.asarray(forces).T.reshape(rows, cuts, 3), np.asarray(moments).T.reshape(rows, cuts, 3),
+                np.asarray(phi).T.copy(), np.asarray(phi_dot).T.copy())
 
 
 def simulate_spatial_kinematic_loops_generated(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *, t_final: float,
@@ -430,11 +439,11 @@ def simulate_spatial_kinematic_loops_generated(model: SpatialKinematicLoopModel,
     size = compiled.state_size - 2
     bad = first_failure(states, size)
     good = len(t) if bad is None else bad
-    unknowns, phi, phi_dot = compiled.cut_history(t[:good], states[:good])
+    forces, moments, phi, phi_dot = compiled.cut_history(t[:good], states[:good])
 
     def history(k: int) -> SpatialLoopSimulation:
-        return loop_simulation(model, t[:k], states[:k, :size], unknowns[:k], "rk4-generated", wall, 4 * n_steps,
-                               phi[:k], phi_dot[:k])
+        return loop_simulation(model, t[:k], states[:k, :size], forces[:k], moments[:k], "rk4-generated", wall,
+                               4 * n_steps, phi[:k], phi_dot[:k])
 
     out_of_range = _deformation_failure(model, t, states, bad, float(dt), size, compiled.iterations)
     if out_of_range is not None:
@@ -485,22 +494,14 @@ def _deformation_failure(model: SpatialKinematicLoopModel, t: np.ndarray, states
     return deformation_failure(model, t, states, bad, dt, size, beyond, step)
 
 
-def loop_simulation(model: SpatialKinematicLoopModel, t: np.ndarray, states: np.ndarray, unknowns: np.ndarray,
-                    method: str, wall: float, evaluations: int, phi: np.ndarray | None = None,
-                    phi_dot: np.ndarray | None = None) -> SpatialLoopSimulation:
-    """The :class:`SpatialLoopSimulation` of stored times ``t`` [s], states ``[q, v]`` and cut unknowns (rows, m):
-    the cut loads (:meth:`SpatialKinematicLoopModel.cut_loads`, a spherical cut's law moment added as the numpy run
-    stores it) and the drift from ``Phi``, ``Phi'`` (rows, m; ``None``: evaluated here)."""
-    k, nq = len(t), model.tree.n_positions
-    if phi is None:
-        rows = [model.constraints(states[i, :nq], states[i, nq:], float(t[i])) for i in range(k)]
-        phi, phi_dot = np.array([r[0] for r in rows]).reshape(k, -1), np.array([r[1] for r in rows]).reshape(k, -1)
-    loads = [model.cut_loads(states[i, :nq], unknowns[i], t[i]) for i in range(k)]
-    forces = np.array([[f for f, _ in row] for row in loads]).reshape(k, len(model.cuts), 3)
-    moments = np.array([[mu for _, mu in row] for row in loads]).reshape(k, len(model.cuts), 3)
-    if spherical_law_cuts(model):               # a spherical cut's law moment, as the numpy run stores it
-        moments = moments + np.array([model.law_moments(states[i, :nq], states[i, nq:], t[i])
-                                      for i in range(k)]).reshape(k, len(model.cuts), 3)
+def loop_simulation(model: SpatialKinematicLoopModel, t: np.ndarray, states: np.ndarray, forces: np.ndarray,
+                    moments: np.ndarray, method: str, wall: float, evaluations: int, phi: np.ndarray,
+                    phi_dot: np.ndarray) -> SpatialLoopSimulation:
+    """The :class:`SpatialLoopSimulation` of stored times ``t`` [s], states ``[q, v]``, the cut forces [N] and moments
+    [N m] on the children (rows, n_cuts, 3; world axes: :meth:`SpatialKinematicLoopModel.cut_loads` of the unknowns,
+    a spherical cut's law moment added, as the numpy run stores them; the generated ``F``, ``M`` of
+    :func:`symbolic_spatial_closed_loop`) and the drift from ``Phi``, ``Phi'`` (rows, m)."""
+    nq = model.tree.n_positions
     return SpatialLoopSimulation(model, np.asarray(t), states[:, :nq], states[:, nq:], forces, moments,
                                  np.max(np.abs(phi), axis=1, initial=0.0), np.max(np.abs(phi_dot), axis=1, initial=0.0),
                                  method, wall, evaluations)

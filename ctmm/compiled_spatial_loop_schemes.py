@@ -135,18 +135,20 @@ class CompiledSpatialLoopScheme(CompiledSpatialScheme):
         return np.array([float(self._closed(q, qdot, np.zeros(self.input_size), np.zeros(0), 0.0)[1]), 0.0])
 
     def cut_history(self, t: np.ndarray, states: np.ndarray, held: np.ndarray | None = None
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Cut unknowns, ``Phi`` and ``Phi'`` (rows, m) of stored times ``t`` [s] and states ``[q, v]`` with the input
-        vector ``held`` (:meth:`held_inputs`; default zero): the closed-loop functions on symbols mapped over the rows
-        (one call)."""
-        m, rows, nq = self.loop_model.n_constraints, len(t), self.model.n_positions
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Cut forces [N] and moments [N m] on the children (rows, n_cuts, 3; world axes, as
+        :func:`~ctmm.compiled_spatial_kinematic_loops.loop_simulation` stores them), ``Phi`` and ``Phi'`` (rows, m) of
+        stored times ``t`` [s] and states ``[q, v]`` with the input vector ``held`` (:meth:`held_inputs`; default
+        zero): the closed-loop functions on symbols mapped over the rows (one call)."""
+        m, rows, nq, cuts = self.loop_model.n_constraints, len(t), self.model.n_positions, len(self.loop_model.cuts)
         if rows == 0:
-            return np.zeros((0, m)), np.zeros((0, m)), np.zeros((0, m))
+            return np.zeros((0, cuts, 3)), np.zeros((0, cuts, 3)), np.zeros((0, m)), np.zeros((0, m))
         q, v, t = states[:, :nq].T, states[:, nq:].T, np.asarray(t, dtype=float)[None, :]
         u = np.zeros(self.input_size) if held is None else np.asarray(held, dtype=float)
-        _, _, unknowns, phi, phi_dot, _, _ = self._closed.map(rows)(q, v, np.tile(u[:, None], (1, rows)),
-                                                                 np.zeros((0, rows)), t)
-        return np.asarray(unknowns).T.copy(), np.asarray(phi).T.copy(), np.asarray(phi_dot).T.copy()
+        _, _, _, phi, phi_dot, _, forces, moments = self._closed.map(rows)(q, v, np.tile(u[:, None], (1, rows)),
+                                                                        np.zeros((0, rows)), t)
+        return (np.asarray(forces).T.reshape(rows, cuts, 3), np.asarray(moments).T.reshape(rows, cuts, 3),
+                np.asarray(phi).T.copy(), np.asarray(phi_dot).T.copy())
 
     def _build(self) -> tuple[Any, list]:
         """The scheme's step followed by the projection of ``q``, ``v`` at the step's end (module docstring)."""
@@ -213,8 +215,8 @@ def simulate_spatial_loop_scheme_generated(model: SpatialKinematicLoopModel, q0:
             "newton_iterations": total, "projection": compiled.projection}
 
     def result(k: int) -> SpatialLoopSimulation:
-        unknowns, phi, phi_dot = compiled.cut_history(times[:k], states[:k, :size], held)
-        return loop_simulation(model, times[:k], states[:k, :size], unknowns, method, wall, total, phi, phi_dot)
+        forces, moments, phi, phi_dot = compiled.cut_history(times[:k], states[:k, :size], held)
+        return loop_simulation(model, times[:k], states[:k, :size], forces, moments, method, wall, total, phi, phi_dot)
 
     run = checked_spatial_result(compiled, times, states, dt, method, result, divergence_bound, held)
     check_cut_rows(compiled, times, states, f"spatial kinematic loop {model.name!r} ({method})", result)

@@ -296,3 +296,56 @@ def test_generated_delayed_loop_on_the_force_at_a_beam_tip_equals_the_numpy_driv
     generated = ctmm.simulate(controlled, 0.02, 1e-3, compiled=True, **options)
     _equal(generated, _numpy(controlled, 0.02, 1e-3, **options))
     assert np.ptp(generated["force.u"]) > 0.05
+
+
+def _stored_load_scenes():
+    """:func:`_cut_kind_scenes` (universal, prismatic with law and actuation, driven prismatic), the ball on a spherical
+    cut with a 3-axis law (tests/test_spatial_spherical_cut_law.py) and a free body on a driven revolute cut (its drive
+    moment part of the cut moment): ``(loop, q, v)``."""
+    import ctmm.spatial as sp
+    from ctmm.spatial.closed_loops import SpatialCutJoint, SpatialKinematicLoopModel
+    from test_spatial_spherical_cut_law import LAW, _ball, _start
+
+    scenes = [(loop, q, v) for loop, q, v, _, _ in _cut_kind_scenes()]
+    ball = _ball(LAW)
+    scenes.append((ball, *_start(ball)))
+    tree = sp.SpatialModel("hinged", [sp.SpatialBody("p", 1.2, np.diag([0.02, 0.03, 0.025]),
+                                                     center_of_mass=(0.1, 0.0, -0.3)),
+                                      sp.Free(name="free", parent=None, child="p")])
+    drive = dict(position=Harmonic(0.2, 5.0, np.pi / 2), rate=Harmonic(1.0, 5.0, np.pi),
+                 acceleration=Harmonic(-5.0, 5.0, np.pi / 2))
+    hinge = SpatialKinematicLoopModel(tree, [SpatialCutJoint(name="hinge", parent=None, child="p", kind="revolute",
+                                                             axis=(0, 1, 0), **drive)])
+    scenes.append((hinge, *hinge.consistent_state({}, {})))
+    return scenes
+
+
+def _numpy_stored_loads(loop, run) -> tuple[np.ndarray, np.ndarray]:
+    """The numpy run's stored cut forces and moments at the rows of ``run``, row by row
+    (:meth:`SpatialKinematicLoopModel.stored_row`: the numpy solve, :meth:`~SpatialKinematicLoopModel.cut_loads` and
+    the spherical law's moment -- the formula the generated runs evaluated in numpy before their kernels output it)."""
+    forces, moments = [], []
+    for t, q, v in zip(run.t, run.q, run.v):
+        _, _, loads, law = loop.stored_row(q, v, float(t))
+        forces.append([f for f, _ in loads])
+        moments.append(np.array([m for _, m in loads]) + law)
+    return np.array(forces), np.array(moments)
+
+
+@pytest.mark.parametrize("index", range(5), ids=["universal", "prismatic-law", "prismatic-driven", "spherical-law",
+                                                  "revolute-driven"])
+def test_the_generated_runs_store_the_numpy_cut_loads_row_by_row(index):
+    """The generated RK4's stored cut forces and moments (output by its kernel, ``F`` and ``M`` of
+    :func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop`) = the numpy formula at the same stored
+    states, row by row, for every cut kind (a law's moment, a drive's moment and force in them): to 1e-12 of the
+    largest load (measured <= 1.5e-14).  The generated schemes store the same ``M`` (the closed-loop function mapped
+    over their rows): tests/test_compiled_spatial_loop_schemes.py against the numpy scheme."""
+    from ctmm.compiled_spatial_kinematic_loops import simulate_spatial_kinematic_loops_generated
+
+    loop, q, v = _stored_load_scenes()[index]
+    run = simulate_spatial_kinematic_loops_generated(loop, q, v, t_final=0.02, dt=1e-3)
+    forces, moments = _numpy_stored_loads(loop, run)
+    scale = max(1.0, np.abs(forces).max(), np.abs(moments).max())
+    assert np.abs(moments).max() > 1e-2 and run.cut_force.shape == forces.shape == (len(run.t), 1, 3)
+    assert np.abs(run.cut_force - forces).max() <= 1e-12 * scale
+    assert np.abs(run.cut_moment - moments).max() <= 1e-12 * scale

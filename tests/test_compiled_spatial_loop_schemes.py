@@ -35,6 +35,7 @@ def test_generated_scheme_equals_numpy_and_converges_to_the_dae(four_bar):
         np.testing.assert_array_equal(run.t, plain.t)
         assert np.abs(run.q - plain.q).max() <= 1e-12 and np.abs(run.v - plain.v).max() <= 1e-12
         assert np.abs(run.cut_force - plain.cut_force).max() <= 1e-12 * max(1.0, np.abs(plain.cut_force).max())
+        assert run.cut_moment.shape == plain.cut_moment.shape and not np.any(run.cut_moment)     # spherical, no law
         assert info["projection"] is True and info["max_drift_after_projection"] <= 1e-12
         assert run.drift.max() <= 1e-12 and run.method == f"dt-tmm-generated/{method}"
         errors.append(_dae_errors(loop, run)[0])
