@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..ops import CASADI, NUMPY, Ops
+from ..ops import Ops
 
 __all__ = ["constant", "entry", "column", "skew", "cross", "axis_rotation", "quaternion_rotation",
            "quaternion_rate", "block_diagonal"]
@@ -70,18 +70,17 @@ def cross(ops: Ops, a: Any, b: Any) -> Any:
 
 def axis_rotation(ops: Ops, axis: np.ndarray, angle: Any) -> Any:
     """``Rot(axis, angle) = I + sin(angle) [a]x + (1 - cos(angle)) [a]x^2`` for a unit numeric ``axis``."""
-    eye, k, k2 = _axis_terms(ops.name, tuple(np.asarray(axis, dtype=float).reshape(3).tolist()))
+    eye, k, k2 = _axis_terms(ops, tuple(np.asarray(axis, dtype=float).reshape(3).tolist()))
     return eye + k * ops.sin(angle) + k2 * (1.0 - ops.cos(angle))
 
 
 @lru_cache(maxsize=256)
-def _axis_terms(ops_name: str, axis: tuple[float, float, float]) -> tuple[Any, Any, Any]:
-    """``(I, [a]x, [a]x^2)`` of an axis as constants of the ops named ``ops_name`` (numpy ones read-only: shared)."""
+def _axis_terms(ops: Ops, axis: tuple[float, float, float]) -> tuple[Any, Any, Any]:
+    """``(I, [a]x, [a]x^2)`` of an axis as constants of ``ops`` (numpy ones read-only: shared)."""
     a = np.asarray(axis)
     k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-    ops = NUMPY if ops_name == "numpy" else CASADI
     terms = (constant(ops, np.eye(3)), constant(ops, k), constant(ops, k @ k))
-    if ops_name == "numpy":
+    if ops.name == "numpy":
         for term in terms:
             term.flags.writeable = False
     return terms
