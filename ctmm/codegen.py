@@ -25,6 +25,15 @@ publishing, but ``key`` is computed by the caller BEFORE the functions and the C
 flags), so a cached library loads by its functions' names without generating anything.  A caller that
 keys on a description of its inputs (:mod:`ctmm.model_description`) before building any symbol lets the
 entry store the names too (``<name>.names``).
+
+Optimization level (``$CTMM_OPTIMIZATION_LEVEL``, read at every build): unset or empty, each kernel is built with the
+flags its caller gives (:data:`DEFAULT_FLAGS`, :data:`STRAIGHT_LINE_FLAGS`, chosen by measurement for the kernel's
+speed); set to one of ``0 1 2 3 s g``, every ``-O`` flag of every build of this module is replaced by ``-O<level>``
+(:func:`effective_flags`; FMU builds keep their own).  The effective flags are part of the cache key, so the two
+builds are two entries.  The numbers agree to round-off at every level (no value-changing flag is ever added: no
+``-ffast-math``; on processors with fused multiply-add the optimizer may contract ``a*b + c``), the speeds do not: gcc's time on generated straight-line code is ~3x shorter at ``-O0`` and
+the kernel runs ~2-5x slower per step, the trade of a test suite or of a short exploratory run that compiles many
+kernels and runs each briefly (``tests/conftest.py`` sets ``0``).
 """
 from __future__ import annotations
 
@@ -42,8 +51,9 @@ from typing import Any, Callable, Iterable, Sequence
 
 from .errors import ModelError
 
-__all__ = ["CompiledLibrary", "DEFAULT_FLAGS", "LINK_FLAGS", "STRAIGHT_LINE_FLAGS", "cache_directory", "cache_key", "casadi_source",
-           "compiler_identity", "find_compiler", "hoisted_input_reads", "load_casadi", "load_casadi_keyed", "load_ctypes",
+__all__ = ["CompiledLibrary", "DEFAULT_FLAGS", "LINK_FLAGS", "OPTIMIZATION_LEVEL_VARIABLE", "OPTIMIZATION_LEVELS",
+           "STRAIGHT_LINE_FLAGS", "cache_directory", "cache_key", "casadi_source", "compiler_identity", "effective_flags",
+           "find_compiler", "hoisted_input_reads", "load_casadi", "load_casadi_keyed", "load_ctypes",
            "run_compiler", "shared_library"]
 
 DEFAULT_FLAGS = ("-O2", "-shared", "-fPIC")
@@ -59,6 +69,11 @@ Newmark 1.3x slower at ``-O1``) nor the Newton steps of planar DT-TMM schemes (N
 :data:`DEFAULT_FLAGS`."""
 LINK_FLAGS = ("-lm",)
 """Flags placed after the source file (libraries to link)."""
+OPTIMIZATION_LEVEL_VARIABLE = "CTMM_OPTIMIZATION_LEVEL"
+"""Environment variable that, when set, replaces the ``-O`` flag of every kernel build (:func:`effective_flags`)."""
+OPTIMIZATION_LEVELS = ("0", "1", "2", "3", "s", "g")
+"""Allowed values of ``$CTMM_OPTIMIZATION_LEVEL`` (gcc's and clang's ``-O0`` ... ``-Og``)."""
+_OPTIMIZATION_FLAG = re.compile(r"-O(\d+|s|g|z|fast)?")
 _KEY_FORMAT = b"ctmm.codegen/1"
 _KEYED_FORMAT = b"ctmm.codegen.keyed/1"
 _CODEGEN_TEXT = Path(__file__).read_bytes()     # casadi_source's options: part of every keyed entry's key
@@ -273,7 +288,31 @@ def _check_name(name: str) -> None:
 def _checked_flags(flags: Sequence[str]) -> list[str]:
     if isinstance(flags, (str, bytes)) or not all(isinstance(flag, str) for flag in flags):
         raise ModelError(f"flags must be a sequence of strings such as ('-O2', '-shared', '-fPIC'), got {flags!r}")
-    return list(flags)
+    return effective_flags(flags)
+
+
+def effective_flags(flags: Sequence[str]) -> list[str]:
+    """The compiler flags a kernel build uses: ``flags`` as given when ``$CTMM_OPTIMIZATION_LEVEL`` is unset or
+    empty, else with every ``-O`` flag replaced by ``-O<level>`` (put first when ``flags`` has none).
+
+    Parameters
+    ----------
+    flags : sequence of str
+        The caller's flags (e.g. :data:`DEFAULT_FLAGS`).
+
+    Raises
+    ------
+    ModelError
+        ``$CTMM_OPTIMIZATION_LEVEL`` holds another value than one of :data:`OPTIMIZATION_LEVELS`.
+    """
+    level = os.environ.get(OPTIMIZATION_LEVEL_VARIABLE, "").strip()
+    if not level:
+        return list(flags)
+    if level not in OPTIMIZATION_LEVELS:
+        raise ModelError(f"${OPTIMIZATION_LEVEL_VARIABLE} = {level!r} is not an optimization level; allowed: one of "
+                         f"{', '.join(OPTIMIZATION_LEVELS)} (or unset: each kernel's own flags)")
+    kept = [flag for flag in flags if not _OPTIMIZATION_FLAG.fullmatch(flag)]
+    return [f"-O{level}", *kept]
 
 
 def _publish(source: str, library: Path, compiler_path: str, flags: list[str], names: Sequence[str] = ()) -> bool:

@@ -10,6 +10,11 @@ import pytest
 
 matplotlib.use("Agg")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# Generated kernels are built at -O0 in the tests (ctmm.codegen.effective_flags): the same numbers, ~3x less gcc time
+# on straight-line code, and each test runs its kernels briefly.  CI starts from a cold kernel cache, where gcc was
+# ~10 of the suite's 42 CPU-minutes at the kernels' own -O1/-O2.  Set CTMM_OPTIMIZATION_LEVEL empty to test the
+# kernels' own flags (tests/test_codegen.py builds one kernel both ways and compares the numbers).
+os.environ.setdefault("CTMM_OPTIMIZATION_LEVEL", "0")
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:

@@ -40,7 +40,8 @@ def test_miss_then_hit(tmp_path):
     assert sorted(p.name for p in (tmp_path / "kernels").iterdir()) == [first.path.parent.name]
 
 
-def test_key_changes_with_source_and_flags(tmp_path):
+def test_key_changes_with_source_and_flags(tmp_path, monkeypatch):
+    monkeypatch.delenv(codegen.OPTIMIZATION_LEVEL_VARIABLE, raising=False)     # each build's own flags
     base = codegen.shared_library(SOURCE, "twice", cache_dir=tmp_path)
     changed = codegen.shared_library(SOURCE + "/* changed */\n", "twice", cache_dir=tmp_path)
     flagged = codegen.shared_library(SOURCE, "twice", cache_dir=tmp_path, flags=("-O0", "-shared", "-fPIC"))
@@ -243,3 +244,60 @@ def test_a_time_loop_without_inputs_compiles_where_int_conversion_is_an_error(tm
         state = np.array([state[0] + dt * rate, rate])
     compiled = np.asarray(loaded[1]([1.0, 0.0], ca.DM(0, 1), dt, ca.DM(0, 1), 0.0, 0.0)).ravel()
     assert np.max(np.abs(compiled - state)) <= 1e-15
+
+
+def test_the_optimization_level_variable_replaces_every_o_flag_and_refuses_other_values(monkeypatch):
+    """``$CTMM_OPTIMIZATION_LEVEL``: unset or empty, the flags as given; a level replaces every ``-O`` flag (put
+    first when there is none); anything else is refused naming the variable, the value and the allowed ones."""
+    variable = codegen.OPTIMIZATION_LEVEL_VARIABLE
+    flags = ("-O2", "-shared", "-fPIC", "-Ofast")
+    for unset in (None, "", "  "):
+        if unset is None:
+            monkeypatch.delenv(variable, raising=False)
+        else:
+            monkeypatch.setenv(variable, unset)
+        assert codegen.effective_flags(flags) == list(flags)
+    monkeypatch.setenv(variable, "0")
+    assert codegen.effective_flags(flags) == ["-O0", "-shared", "-fPIC"]
+    assert codegen.effective_flags(("-shared", "-fPIC")) == ["-O0", "-shared", "-fPIC"]
+    monkeypatch.setenv(variable, "s")
+    assert codegen.effective_flags(codegen.STRAIGHT_LINE_FLAGS) == ["-Os", "-shared", "-fPIC"]
+    for bad in ("fast", "-O2", "4", "zero"):
+        monkeypatch.setenv(variable, bad)
+        with pytest.raises(ModelError, match=rf"CTMM_OPTIMIZATION_LEVEL = '{bad}'.*allowed: one of 0, 1, 2, 3, s, g"):
+            codegen.effective_flags(flags)
+        with pytest.raises(ModelError, match="CTMM_OPTIMIZATION_LEVEL"):
+            codegen.shared_library(SOURCE, "twice", cache_dir="/nonexistent-never-reached")
+
+
+def test_a_kernel_at_the_optimization_level_is_another_entry_with_the_same_numbers(tmp_path, monkeypatch):
+    """One casadi function (20 RK4 steps of a damped pendulum with a cubic spring) compiled with its own
+    ``-O2`` and at ``$CTMM_OPTIMIZATION_LEVEL=0``: two cache entries (the effective flags are in the key), both equal
+    casadi's virtual machine to round-off."""
+    ca = pytest.importorskip("casadi")
+    import numpy as np
+
+    x, h = ca.SX.sym("x", 2), ca.SX.sym("h")
+
+    def rate(state):
+        return ca.vertcat(state[1], -9.81 * ca.sin(state[0]) - 0.3 * state[1] - 4.0 * state[0] ** 3)
+
+    state = x
+    for _ in range(20):
+        k1 = rate(state)
+        k2 = rate(state + h / 2 * k1)
+        k3 = rate(state + h / 2 * k2)
+        k4 = rate(state + h * k3)
+        state = state + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    function = ca.Function("pendulum_rk4", [x, h], [state])
+    start, step = [1.1, -0.4], 0.01
+    reference = np.asarray(function(start, step)).ravel()
+    results, folders = [], []
+    for level in ("", "0"):
+        monkeypatch.setenv(codegen.OPTIMIZATION_LEVEL_VARIABLE, level)
+        (compiled,) = codegen.load_casadi([function], "pendulum_rk4", cache_dir=tmp_path)
+        results.append(np.asarray(compiled(start, step)).ravel())
+        folders.append(sorted(p.name for p in (tmp_path / "kernels").iterdir() if not p.name.startswith(".")))
+    assert len(folders[0]) == 1 and len(folders[1]) == 2
+    for result in results:
+        assert np.max(np.abs(result - reference)) <= 1e-14 * np.max(np.abs(reference))
