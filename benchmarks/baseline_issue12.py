@@ -59,7 +59,9 @@ above the dense kinds' limit) were added with their benchmark and are to be meas
 ``kernel_cache/cached_call_planar_pendulum10_newmark`` and ``..._loops_rk4`` (issue 13, session 13: cached planar
 scheme and loop calls keyed before building) were measured alone when they landed;
 ``generated_flags/first_compile_python_four_bar`` (issue 13, session 14: the Python part of a first compile of a
-generated kernel) was measured alone when its benchmark landed.
+generated kernel) was measured alone when its benchmark landed; ``spatial_scheme_tangent/generated_newmark_free_body``
+(issue 13, session 15: the generated spatial Newmark step with the Newton tangent by directional derivatives) was
+added with its benchmark and is to be measured alone the same way.
 Python time-stepping cases whose
 benchmark horizon would make the repeats slow run over a shorter horizon at the benchmark's step
 (stated in ``configuration``): the per-step cost does not depend on the horizon.
@@ -552,6 +554,18 @@ def _generated_flags(t: Timings) -> None:
                             "compiler's CPU, a child process, is benchmarks/generated_flags.py's compiler_cpu_s)")
 
 
+def _spatial_scheme_tangent(t: Timings) -> None:
+    bench = importlib.import_module("spatial_scheme_tangent")
+    model, start = bench.tumbling_top()
+    compiled = bench.CompiledSpatialScheme(model, "newmark")
+    state, steps = compiled.initial_state(start), 200
+    t.add("spatial_scheme_tangent", "generated_newmark_free_body",
+          lambda: compiled.run(state, bench.DT, steps), per="step", count=steps,
+          configuration=f"a tumbling free body (6 velocities), generated Lie-group Newmark with the default Newton "
+                        f"tangent (CompiledSpatialScheme.run, library compiled), dt={bench.DT:g} s, {steps} steps "
+                        "(the first compile's C and gcc CPU: benchmarks/spatial_scheme_tangent.py)")
+
+
 def _chain_frf(t: Timings) -> None:
     bench = importlib.import_module("foundation_scaling")
     n = 1000
@@ -607,7 +621,7 @@ TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _f
                 _chain_schemes_generated, _chain_ode_speed, _compiled_cosim, _batch_parameters, _kernel_cache,
                 _planar_frf, _compiled_schemes_planar, _compiled_schemes_default, _spatial_frf,
                 _kinematic_loops_generated, _chain_frf, _chain_setup_scaling, _chain_default_limits,
-                _generated_flags)
+                _generated_flags, _spatial_scheme_tangent)
 
 
 def timings() -> dict:

@@ -10,7 +10,8 @@ unit seed: :meth:`casadi.Function.forward` of the sweep mapped serially over the
 evaluation costs ``n`` directional derivatives (each a small multiple of one sweep).  The columns are the
 same derivatives as the symbolic Jacobian's (algorithmic differentiation of the same operations), equal to
 round-off.  Used by :mod:`ctmm.compiled_scene_schemes`, :mod:`ctmm.compiled_newton_weighting` and the spatial
-schemes.  The price is the evaluation, O(N^2) per Newton iteration: on a folded 100-body pendulum chain (Newmark)
+schemes (:func:`value_and_jacobian`: the directional derivative along the iterate alone, :func:`casadi.jtimes`, from
+:data:`SPATIAL_MAPPED_MIN_VELOCITIES`).  The price is the evaluation, O(N^2) per Newton iteration: on a folded 100-body pendulum chain (Newmark)
 the first compile is 4.1 s but a step costs 37 ms of CPU (``benchmarks/compiled_schemes_planar.py --chain-sizes``);
 against the Python stepper's transfer-form Newton (one linearised sweep per iteration, O(N)) in the same run the
 generated step is 0.27 of it at 15 coordinates, 1.5 times it at 20 and 10 times at 80 (20.3 against 2.0 ms,
@@ -26,18 +27,30 @@ from typing import Any, Sequence
 
 from .errors import ModelError
 
-__all__ = ["MAPPED_MIN_COORDINATES", "mapped_columns", "residual_terms",
+__all__ = ["MAPPED_MIN_COORDINATES", "SPATIAL_MAPPED_MIN_VELOCITIES", "mapped_columns", "residual_terms",
            "tangent_construction", "value_and_jacobian", "weighted_residual_terms"]
 
 MAPPED_MIN_COORDINATES = 8
-"""Generated scheme steps of at least this many coordinates (planar) or velocities (spatial) form their Newton
-tangent by mapped forward derivatives by default (``tangent=None``); smaller ones by the symbolic Jacobian.
+"""Generated planar scheme steps of at least this many coordinates form their Newton tangent by mapped forward
+derivatives by default (``tangent=None``); smaller ones by the symbolic Jacobian (spatial steps:
+:data:`SPATIAL_MAPPED_MIN_VELOCITIES`).
 Measured (pendulum chain, Newmark, CPU incl. gcc, fresh cache, load 10-14 on 2 cores, 2026-11-25): first compile
 symbolic / mapped 2.0 / 1.7 s at N = 5, 5.4 / 3.6 s at 10, 52 / 6.9 s at 20, > 600 s of gcc / (folded) ~3 s at 30;
 per step 31 / 31 us at 5, 58 / 131 us at 10, 161 / 419 us at 20 (the symbolic Jacobian shares its terms; the
 mapped one takes ``2 n`` directional derivatives per Newton iteration).  The symbolic compile passes ~3 s between
-N = 5 and 10, so the mapped one takes over there; spatial loop schemes with a spherical cut law use it whatever
-the size (the law inside the symbolic Jacobian: 16.6 s against 5.8 s)."""
+N = 5 and 10, so the mapped one takes over there."""
+
+SPATIAL_MAPPED_MIN_VELOCITIES = 3
+"""Generated spatial scheme steps (:mod:`ctmm.compiled_spatial_schemes`, with loops, kinematic loops) of at least
+this many velocities form their Newton tangent by the directional derivatives of :func:`value_and_jacobian` by
+default; smaller ones by the symbolic Jacobian.  The symbolic Jacobian of the step's residual repeats the retraction
+and the sweep in every entry: measured (``benchmarks/spatial_scheme_tangent.py`` and single runs, Newmark, gcc
+``-O1`` CPU, load 5 on 2 cores, 2026-11-26; symbolic -> mapped) one revolute link (1 velocity) 80 -> 83 kB of C,
+0.65 -> 0.52 s, 1.9 -> 3.1 us per step; two (2) 119 -> 118 kB, 1.0 -> 1.0 s, 3.7 -> 4.2 us; three (3) 217 -> 175 kB,
+2.2 -> 1.9 s, 7.4 -> 9.2 us; a ball joint (3) 164 -> 134 kB, 1.6 -> 1.1 s, 8.9 -> 8.2 us; revolute + ball (4) 262 ->
+173 kB, 2.7 -> 1.7 s, 17 -> 19 us; a free body (6) 458 -> 232 kB, 6.6 -> 2.4 s, 21 -> 36 us; a free body held by
+a revolute cut (kinematic loop scheme, 6) 1206 -> 530 kB, 19.0 -> 5.4 s, 45 -> 57-83 us; the same Newton
+iterations.  Below 3 velocities both compile alike and the symbolic one runs faster."""
 
 
 def mapped_columns(function: Any, seeded: Sequence[int], count: int, name: str = "columns") -> Any:
@@ -78,14 +91,22 @@ def mapped_columns(function: Any, seeded: Sequence[int], count: int, name: str =
 
 
 def value_and_jacobian(function: Any, index: int, name: str) -> Any:
-    """``name(*inputs) -> (output_0, d output_0 / d input_index)`` (casadi ``Function`` on MX): the Jacobian's
-    columns by :func:`mapped_columns` along the unit seeds of input ``index`` (a column vector)."""
+    """``name(*inputs) -> (output_0, d output_0 / d input_index)`` (casadi ``Function`` on MX), the columns of
+    the Jacobian by a serial map over the unit seeds of input ``index`` (a column vector) of one directional
+    derivative of ``function``'s first output along that input alone (:func:`casadi.jtimes`: no derivative code for
+    the held inputs); the value is the first evaluation's (the derivative's code computes it anyway), so the code
+    holds the function once, inside its derivative."""
     import casadi as ca
 
-    inputs = [ca.MX.sym(function.name_in(i), function.sparsity_in(i)) for i in range(function.n_in())]
-    size = function.size1_in(index)
-    columns = mapped_columns(function, [index], size, f"{name}_columns")
-    return ca.Function(name, inputs, [function.call(inputs)[0], columns(*inputs, ca.DM.eye(size))])
+    symbol = ca.SX if function.is_a("SXFunction") else ca.MX
+    inputs = [symbol.sym(function.name_in(i), function.sparsity_in(i)) for i in range(function.n_in())]
+    size, value = function.size1_in(index), function.call(inputs)[0]
+    seed = symbol.sym("seed", size)
+    direction = ca.Function(f"{name}_direction", [*inputs, seed], [value, ca.jtimes(value, inputs[index], seed)])
+    mapped = direction.map(f"{name}_columns", "serial", size, list(range(len(inputs))), [])
+    outer = [ca.MX.sym(function.name_in(i), function.sparsity_in(i)) for i in range(function.n_in())]
+    values, columns = mapped(*outer, ca.DM.eye(size))
+    return ca.Function(name, outer, [values[:, 0], columns])
 
 
 def residual_terms(rates: Any) -> Any:
@@ -107,13 +128,15 @@ def residual_terms(rates: Any) -> Any:
     return ca.Function("residual", [a, q_hat, v_hat, w, g, t, u, p, c, s], [a - value, tangent])
 
 
-def tangent_construction(owner: str, tangent: str | None, coordinates: int, sweep: str | None = None) -> str:
+def tangent_construction(owner: str, tangent: str | None, coordinates: int, sweep: str | None = None,
+                         minimum: int = MAPPED_MIN_COORDINATES) -> str:
     """``"mapped"``, ``"symbolic"`` or ``"sweep"``: how ``owner``'s generated Newton step forms its tangent.
 
     ``sweep``: ``None`` where the implicit-sweep iteration (:mod:`ctmm.compiled_sweep_newton`, planar schemes) is
     no choice, ``""`` where it applies, else why it does not (:func:`ctmm.compiled_sweep_newton.sweep_refusal`).
-    ``tangent=None`` chooses by size: from :data:`MAPPED_MIN_COORDINATES` the sweep where it applies (O(N) per
-    iteration) or else the mapped tangent; below it the symbolic Jacobian.
+    ``tangent=None`` chooses by size: from ``minimum`` coordinates (:data:`MAPPED_MIN_COORDINATES`; spatial steps
+    :data:`SPATIAL_MAPPED_MIN_VELOCITIES`) the sweep where it applies (O(N) per iteration) or else the mapped
+    tangent; below it the symbolic Jacobian.
 
     Raises
     ------
@@ -121,7 +144,7 @@ def tangent_construction(owner: str, tangent: str | None, coordinates: int, swee
         ``tangent`` not one of those or ``None``; ``"sweep"`` where it does not apply (naming why).
     """
     if tangent is None:
-        if coordinates < MAPPED_MIN_COORDINATES:
+        if coordinates < minimum:
             return "symbolic"
         return "sweep" if sweep == "" else "mapped"
     if tangent == "sweep" and sweep:
