@@ -342,8 +342,8 @@ class SpatialScene:
 
     def terms(self, ops: Ops, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None,
               wrenches: Mapping[int, Sequence[tuple[np.ndarray, Any]]] | None = None, turn: Any = None,
-              driven: Mapping[int, tuple[list, list]] | None = None
-              ) -> tuple[list[BodyTerms], list[JointTerms], list[BodyState]]:
+              driven: Mapping[int, tuple[list, list]] | None = None, kinematics_only: bool = False
+              ) -> tuple[list[BodyTerms | None], list[JointTerms], list[BodyState]]:
         """Body terms, joint terms (world axes) and body states at ``(q, v, t)``.
 
         Parameters
@@ -366,6 +366,9 @@ class SpatialScene:
             rate signals at ``t`` (its acceleration stays the signal's): symbols standing for the prescribed motion,
             so that generated code can differentiate the kinematics along it
             (:mod:`ctmm.compiled_spatial_kinematic_loops`).
+        kinematics_only : bool
+            For callers that want the body states alone (poses, sensors, energy): a rigid body's terms are
+            not formed (``None`` in their place; a beam's are, its points' frames come with them).
         """
         model = self.model
         inputs = inputs or {}
@@ -404,6 +407,10 @@ class SpatialScene:
             states.append(motion.state)
             joints.append(motion.joint)
             R_c, offset, w_c = motion.state.rotation, motion.offset, motion.omega
+            if kinematics_only and model.modal[j] is None:      # a rigid body's state needs no terms of it
+                point_frames.append({})
+                bodies.append(None)
+                continue
             if turn is not None:                    # the body's terms turned by delta, its state as it is
                 R_c = R_c + ops.matmul(skew(ops, turn), R_c)
                 offset = None if offset is None else offset + cross(ops, turn, offset)
