@@ -45,7 +45,7 @@ def pose_signals(result: Any) -> dict[str, np.ndarray]:
         return {name: np.zeros(0) for name in drawing_outputs(model)}
     q = np.column_stack([result[name] for name in model.coordinates])
     v = np.column_stack([result[name] for name in model.velocities])
-    states = scene_of(model).terms(NUMPY, q, v, float(result.time[0]))[2]
+    states = scene_of(model).terms(NUMPY, q, v, float(result.time[0]), kinematics_only=True)[2]
     batch = len(q)
     out = {}
     for body, state, modal in zip(model.bodies, states, model.modal):

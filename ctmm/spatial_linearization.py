@@ -183,17 +183,18 @@ def _rates(model: Any, q: np.ndarray, v: np.ndarray, t: float, inputs: Mapping[s
     return np.concatenate(parts, axis=1) if parts else np.zeros((batch, 0))
 
 
-def _position_jacobian(model: Any, q: np.ndarray, v: np.ndarray, t: float, step: float = 1e-30
-                       ) -> tuple[np.ndarray, np.ndarray]:
-    """``df/dr, df/dv`` (nv, nv) at ``(q, v)`` by complex step, one batched sweep over ``2 nv`` states."""
+def _position_jacobian(model: Any, q: np.ndarray, v: np.ndarray, t: float, step: float = 1e-30,
+                       velocities: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+    """``df/dr, df/dv`` (nv, nv) at ``(q, v)`` by complex step, one batched sweep over ``2 nv`` states
+    (``velocities=False``: ``df/dr`` alone, over ``nv`` states, and ``None`` for ``df/dv``)."""
     n = model.n_velocities
     if n == 0:
-        return np.zeros((0, 0)), np.zeros((0, 0))
-    perturb = 1j * step * np.eye(2 * n)
+        return np.zeros((0, 0)), (np.zeros((0, 0)) if velocities else None)
+    perturb = 1j * step * np.eye(2 * n if velocities else n, 2 * n)
     qs = retract(model, q, perturb[:, :n])
     vs = v[None, :] + perturb[:, n:]
     J = _rates(model, qs, vs, t).imag / step          # row k: d f / d x_k
-    return J[:n].T, J[n:].T
+    return J[:n].T, (J[n:].T if velocities else None)
 
 
 # ---------------------------------------------------------------------------- equilibrium
@@ -260,7 +261,7 @@ def unstable_directions(model: Any, q: Any, t: float = 0.0) -> tuple[np.ndarray,
     :func:`tangent_names`."""
     _require_model(model, "unstable_directions")
     q = model.normalized(np.asarray(q, dtype=float))
-    Jq, _ = _position_jacobian(model, q, np.zeros(model.n_velocities), t)
+    Jq, _ = _position_jacobian(model, q, np.zeros(model.n_velocities), t, velocities=False)
     return negative_stiffness(Jq)
 
 
@@ -282,7 +283,7 @@ def _continuation(model: Any, q: np.ndarray, t: float, *, capped: bool) -> np.nd
     while newton_steps > 0:
         if size <= 1e-6 * limit:
             break
-        Jq, _ = _position_jacobian(model, q, zero[0], t)
+        Jq, _ = _position_jacobian(model, q, zero[0], t, velocities=False)
         values, _ = negative_stiffness(Jq) if capped else (np.zeros(0), None)
         if values.size and fall.exhausted():
             break                                   # no potential: the former budget of fall steps

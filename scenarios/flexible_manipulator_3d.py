@@ -32,7 +32,7 @@ Outputs, through the verbs on the one controlled model:
   PD + PZT): PD only, PD + PZT, and a delayed variant (yaw PD 10 ms late) -- joint angles, tip deflections ``w_y``, ``w_z`` in the forearm's frame, PZT voltages; the first two
   against the independent assumed-modes Lagrange model (``ctmm/reference/spatial_beam_lagrange.py``: its
   own shapes and the piezo moments' generalised forces by virtual power, closed loop written there,
-  ``solve_ivp`` DOP853, rtol 1e-10);
+  ``solve_ivp`` DOP853, rtol 1e-10; its mass integrals on ``REFERENCE_POINTS`` Gauss points, converged);
 * the closed-loop roots of the forearm's bending modes (``ctmm.linearize``) with and without PZT: the patch
   loops raise their damping ratios (e.g. 3.8 % -> 12.6 % for the first); the tip deflection right after the
   move is mostly the quasi-static bending of the joint PD's own slow modes, which the patches do not damp;
@@ -88,6 +88,8 @@ DELAY = 0.01                # s, the yaw PD of the delayed variant
 BOUND_TIME = 0.1            # % of peak
 BOUND_LINEAR = 1e-8
 GRAVITY = (0.0, 0.0, -9.81)  # m/s^2, the full run's gravity panel (world z up)
+REFERENCE_POINTS = 16       # Gauss mass points of the reference's beam integrals: converged (its accelerations
+                            # agree with 64 points' to ~1e-14 relative, tests/test_flexible_manipulator_3d.py)
 NO_GRAVITY = (0.0, 0.0, 0.0)
 
 
@@ -134,7 +136,7 @@ def lagrange(gravity: tuple[float, float, float] = NO_GRAVITY) -> SpatialBeamLag
         **ARM, hub_mass=HUB["mass"], hub_inertia=HUB["inertia"], hub_center=HUB["center"],
         axes=((0, 0, 1), (0, 1, 0)), mount=HUB["mount"], shoulder=SHOULDER, base_mass=BASE["mass"],
         base_inertia=BASE["inertia"], base_center=BASE["center"], tip_mass=PAYLOAD["mass"],
-        tip_inertia=PAYLOAD["inertia"], gravity=gravity,
+        tip_inertia=PAYLOAD["inertia"], gravity=gravity, points=REFERENCE_POINTS,
         actuators=((x1, "moment", 2), (x2, "moment", 2), (x1, "moment", 1), (x2, "moment", 1))))
 
 

@@ -72,6 +72,10 @@ def model(tip_mass: float | None = None) -> sp.SpatialModel:
     return sp.SpatialModel(NAME if tip_mass is None else f"{NAME}_tip_body", elements, gravity=(0.0, 0.0, 0.0))
 
 
+REFERENCE_POINTS = 20      # Gauss mass points of the reference's beam integrals: converged (its accelerations agree
+                           # with 64 points' to ~1e-13 relative, tests/test_scenarios_spatial.py)
+
+
 def reference(tip_mass: float | None = None) -> SpatialBeamLagrange:
     """The independent assumed-modes Lagrange model of the same system (plain parameters)."""
     return SpatialBeamLagrange(HubBeam(
@@ -80,7 +84,8 @@ def reference(tip_mass: float | None = None) -> SpatialBeamLagrange:
         n_axial_modes=ARM["n_axial_modes"], axial_stiffness=ARM["axial_stiffness"], hub_mass=HUB["mass"],
         stiffness_damping=ARM["stiffness_damping"],
         hub_inertia=np.diag(HUB["inertia"]), axes=((0.0, 1.0, 0.0),), mount=(HUB["radius"], 0.0, 0.0),
-        tip_mass=tip_mass or 0.0, tip_inertia=np.eye(3) * TIP_INERTIA, gravity=(0.0, 0.0, 0.0)))
+        tip_mass=tip_mass or 0.0, tip_inertia=np.eye(3) * TIP_INERTIA, gravity=(0.0, 0.0, 0.0),
+        points=REFERENCE_POINTS))
 
 
 def pieces(t_final: float) -> list[tuple[float, float, float]]:

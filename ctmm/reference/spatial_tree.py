@@ -270,9 +270,10 @@ def _world_inertia(tree: SpatialTree, kin: Kinematics) -> np.ndarray:
     return np.einsum("bij,bjk,blk->bil", kin.rotation, inertia, kin.rotation)
 
 
-def mass_matrix(tree: SpatialTree, q: np.ndarray) -> np.ndarray:
-    """``M(q) = sum_i m_i Jc_i^T Jc_i + Jw_i^T I_i Jw_i``, (nv, nv)."""
-    kin = kinematics(tree, q, np.zeros(tree.nv))
+def mass_matrix(tree: SpatialTree, q: np.ndarray, kin: Kinematics | None = None) -> np.ndarray:
+    """``M(q) = sum_i m_i Jc_i^T Jc_i + Jw_i^T I_i Jw_i``, (nv, nv); ``kin``: the kinematics at ``q`` if at hand
+    (at any ``v``: the rotations and Jacobians it reads do not depend on the velocities)."""
+    kin = kinematics(tree, q, np.zeros(tree.nv)) if kin is None else kin
     mass = np.array([b.mass for b in tree.bodies])
     jw, jc = kin.jacobian_angular, kin.jacobian_com
     return (np.einsum("b,bin,bim->nm", mass, jc, jc)
@@ -302,16 +303,18 @@ def forward_dynamics(tree: SpatialTree, q: np.ndarray, v: np.ndarray, tau=None,
                      t: float = 0.0) -> np.ndarray:
     """``vdot = M^{-1} (tau - h)`` (dense Cholesky), (nv,)."""
     q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
-    rhs = -bias_forces(tree, q, v, t)
+    kin = kinematics(tree, q, v)                   # one forward pass for both M and h
+    rhs = -bias_forces(tree, q, v, t, kin)
     if tau is not None:
         rhs = rhs + np.asarray(tau, dtype=float)
-    return scipy.linalg.cho_solve(scipy.linalg.cho_factor(mass_matrix(tree, q)), rhs)
+    return scipy.linalg.cho_solve(scipy.linalg.cho_factor(mass_matrix(tree, q, kin)), rhs)
 
 
 def inverse_dynamics(tree: SpatialTree, q: np.ndarray, v: np.ndarray, vdot: np.ndarray,
                      t: float = 0.0) -> np.ndarray:
     """Joint forces ``tau = M vdot + h`` (actuation on top of the joint laws), (nv,)."""
-    return mass_matrix(tree, q) @ np.asarray(vdot, dtype=float) + bias_forces(tree, q, v, t)
+    kin = kinematics(tree, q, v)
+    return mass_matrix(tree, q, kin) @ np.asarray(vdot, dtype=float) + bias_forces(tree, q, v, t, kin)
 
 
 def joint_reactions(tree: SpatialTree, q: np.ndarray, v: np.ndarray, vdot: np.ndarray,
@@ -486,7 +489,7 @@ def linearize(tree: SpatialTree, q0, t: float = 0.0, tolerance: float = 1e-9):
         unit[k] = 1j * step
         stiffness[:, k] = bias_forces(tree, retract(tree, q0, unit), zero, t).imag / step
         damping[:, k] = bias_forces(tree, q0, unit, t).imag / step
-    return mass_matrix(tree, q0), damping, stiffness
+    return mass_matrix(tree, q0, kin), damping, stiffness
 
 
 def natural_frequencies(tree: SpatialTree, q0, t: float = 0.0) -> np.ndarray:

@@ -123,7 +123,7 @@ class SpatialKinematicLoopModel:
         """Per body ``(R, origin, velocity of the origin, omega, inboard point)`` (world, batched ``(B, ...)``; on a
         deformable body also its internal coordinates and their rates ``(B, n)``)."""
         q, v = self.tree.check_state(q, v)
-        return self._states(self._scene.terms(NUMPY, q, v, t)[2], q, v)
+        return self._states(self._scene.terms(NUMPY, q, v, t, kinematics_only=True)[2], q, v)
 
     def _states(self, states: list, q: np.ndarray, v: np.ndarray) -> list[tuple[np.ndarray, ...]]:
         """:meth:`_bodies` of the body states of :meth:`SpatialScene.terms` at ``q``, ``v`` ``(B, ...)``."""

@@ -177,7 +177,7 @@ def energy(model: SpatialModel, q: Any, v: Any, t: float = 0.0) -> np.ndarray:
 
     scene = scene_of(model)                            # anything but a SpatialModel: ModelError
     q_rows, v_rows = model.check_state(q, v)
-    _, _, states = scene.terms(NUMPY, q_rows, v_rows, t)
+    _, _, states = scene.terms(NUMPY, q_rows, v_rows, t, kinematics_only=True)
     total = np.zeros(q_rows.shape[0])
     for body, state, modal in zip(model.bodies, states, model.modal):
         if modal is not None:                          # a beam: kinetic, elastic and gravitational energy

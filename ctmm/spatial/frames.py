@@ -64,7 +64,10 @@ def cross(ops: Ops, a: Any, b: Any) -> Any:
             return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0)).reshape(1, 3, 1)
         a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
         b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
-        return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
+        first = a1 * b2 - a2 * b1                                   # (B, k): filled, not np.stack (its checks)
+        out = np.empty(first.shape[:1] + (3,) + first.shape[1:], dtype=first.dtype)
+        out[:, 0], out[:, 1], out[:, 2] = first, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+        return out
     return ops.matmul(skew(ops, a), b)
 
 

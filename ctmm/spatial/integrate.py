@@ -82,7 +82,7 @@ def spatial_signals(model: SpatialModel, time: np.ndarray, states: np.ndarray) -
     origins = [[] for _ in model.bodies]
     omegas = [[] for _ in model.bodies]
     for q_rows, v_rows, t in chunks:
-        for j, state in enumerate(scene.terms(NUMPY, q_rows, v_rows, t)[2]):
+        for j, state in enumerate(scene.terms(NUMPY, q_rows, v_rows, t, kinematics_only=True)[2]):
             origins[j].append(np.broadcast_to(state.origin, (len(q_rows), 3, 1)))
             omegas[j].append(np.broadcast_to(state.omega, (len(q_rows), 3, 1)))
     for j, body in enumerate(model.bodies):

@@ -217,7 +217,7 @@ def sensor_values(model: Any, scene: Any, sensors: Sequence[Any], q: np.ndarray,
                 sensor.weights, dtype=float)
             continue
         if states is None:
-            states = scene.terms(NUMPY, q, v, t)[2]
+            states = scene.terms(NUMPY, q, v, t, kinematics_only=True)[2]
         state = states[sensor.index]
         R = np.broadcast_to(np.asarray(state.rotation), (batch, 3, 3))
         omega = _rows(state.omega, batch)
