@@ -130,11 +130,19 @@ def _log_pole_factor(system: Any, s: np.ndarray) -> np.ndarray:
     body = system.plant.body if controlled else getattr(system, "body", None)
     if body is None:      # another model type: its own (product) scale
         return np.log(np.asarray(system.characteristic_scale(s), dtype=complex))
+    # connectors with the same law share one logarithm (a chain of 500 equal springs: one log, times 500)
+    multiplicity: dict[tuple, list] = {}
+    for element in body:
+        if isinstance(element, Connector):
+            co = element.axial_coefficients()        # what connector_stiffness reads
+            key = (type(element).connector_stiffness, co.inertia, co.damping, co.stiffness)
+            multiplicity.setdefault(key, [element, 0])[1] += 1
     out = np.zeros(s.shape, dtype=complex)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        for element in body:
-            if isinstance(element, Connector):
-                out = out + np.log(np.asarray(element.connector_stiffness(s), dtype=complex))
+        for element, count in multiplicity.values():
+            log = np.log(np.asarray(element.connector_stiffness(s), dtype=complex))
+            out.real += count * log.real           # part by part: count * (-inf + 0j) would give nan
+            out.imag += count * log.imag
         for lp in (system.loops if controlled else ()):
             if lp.is_lti:
                 out = out + np.log(np.asarray(lp.denominator(s), dtype=complex))
