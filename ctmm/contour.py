@@ -78,16 +78,24 @@ class ContourEvaluator:
         self.calls = self.points = 0
 
     def __call__(self, s: np.ndarray) -> np.ndarray:
+        return self.scaled(s, unscaled=True)[0]
+
+    def scaled(self, s: np.ndarray, *, unscaled: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """``(values, g)``: ``char_fn(s)`` and the log of the positive function ``e^g`` it was divided by, so that
+        ``values e^g`` is holomorphic (a char_fn says so by a ``scaled`` attribute returning both, as
+        :meth:`ctmm.sweeps.AffineCharacteristic.char_fn`; else ``g = 0``).  ``unscaled``: ``g`` not wanted."""
         s = np.asarray(s, dtype=complex)
         if self.points + s.size > self.budget:
             raise BudgetExceeded()
         self.calls += 1
         self.points += s.size
-        value = np.asarray(self.char_fn(s))
+        both = None if unscaled else getattr(self.char_fn, "scaled", None)
+        value, scale = both(s) if both is not None else (np.asarray(self.char_fn(s)), np.zeros(s.shape))
+        value = np.asarray(value)
         if value.shape != s.shape:
             raise ModelError(f"char_fn must return an array of the same shape as s (vectorised); "
                              f"got shape {value.shape} for s of shape {s.shape}")
-        return value.astype(complex, copy=False)
+        return value.astype(complex, copy=False), np.asarray(scale, dtype=float)
 
 
 class BudgetExceeded(Exception):

@@ -155,15 +155,13 @@ def _newton_many(ev: ContourEvaluator, derivative: CharacteristicFunction | None
     tol max(1, |z|), or when it stops shrinking at a small size (noise floor).  Error estimate:
     max(|step|, (sigma/|a_m|)^(1/m), (|Delta(z)|/|a_m|)^(1/m) for m > 1).  Iterates that
     leave the disc ``limit`` = (centre, radius) are abandoned.  Also returns whether the
-    residual radius is within 10x the noise radius (a cluster at the noise level).
+    residual radius is within 10x the noise radius (a cluster at the noise level).  A Delta divided by a positive
+    function ``e^g`` (:meth:`ContourEvaluator.scaled`) is multiplied back on each circle (else no Cauchy integral).
     """
     z = np.asarray(z0, dtype=complex).copy()
     n = z.size
-    converged = np.zeros(n, bool)
-    alive = np.ones(n, bool)
-    error = np.full(n, np.inf)
-    previous = np.full(n, np.inf)
-    at_noise = np.zeros(n, bool)
+    converged, alive, at_noise = np.zeros(n, bool), np.ones(n, bool), np.zeros(n, bool)
+    error, previous = np.full(n, np.inf), np.full(n, np.inf)
     rho = np.broadcast_to(np.asarray(rho, dtype=float), z.shape)
     for iteration in range(max_iterations):
         idx = np.flatnonzero(alive & ~converged)
@@ -173,15 +171,17 @@ def _newton_many(ev: ContourEvaluator, derivative: CharacteristicFunction | None
         use_circle = (mi > 1) | (derivative is None)
         circ = idx[use_circle]
         pts = np.concatenate([zi, (z[circ][:, None] + rho[circ][:, None] * UNIT_CIRCLE).ravel()])
-        try:
-            values = ev(pts)
+        try:            # Delta / e^g (g real): each circle's values are brought to the scale of its centre
+            values, g = ev.scaled(pts)
         except BudgetExceeded:
             break
         f0 = values[:idx.size]
-        coeffs = np.zeros((idx.size, CIRCLE_POINTS), complex)
-        sigma = np.zeros(idx.size)
+        coeffs, sigma = np.zeros((idx.size, CIRCLE_POINTS), complex), np.zeros(idx.size)
         if circ.size:
-            raw = np.fft.fft(values[idx.size:].reshape(circ.size, CIRCLE_POINTS), axis=1) / CIRCLE_POINTS
+            with np.errstate(over="ignore", invalid="ignore"):
+                ring = values[idx.size:].reshape(circ.size, CIRCLE_POINTS) * np.exp(
+                    g[idx.size:].reshape(circ.size, CIRCLE_POINTS) - g[:idx.size][use_circle][:, None])
+            raw = np.fft.fft(ring, axis=1) / CIRCLE_POINTS
             coeffs[use_circle] = raw / rho[circ][:, None] ** np.arange(CIRCLE_POINTS)
             sigma[use_circle] = np.sqrt(CIRCLE_POINTS * np.mean(np.abs(raw[:, 9:]) ** 2, axis=1))
         if derivative is not None and (~use_circle).any():

@@ -394,8 +394,9 @@ class StateSpaceCharacteristic(AffineCharacteristic):
         """``(A, b, C, d)`` of the open loop ``y_j = P_j(s) C(s) u`` (for :mod:`ctmm.certification`)."""
         return self.A, self.b, self.C, self.d
 
-    def components_at(self, s: np.ndarray) -> np.ndarray:
-        """``[base, T_1, ...]`` of eq. (1) at ``s``, divided by the largest modulus at each ``s``."""
+    def components_at(self, s: np.ndarray, scale: np.ndarray | None = None) -> np.ndarray:
+        """``[base, T_1, ...]`` of eq. (1) at ``s``, divided by the largest modulus at each ``s`` (its log written
+        into ``scale`` when given)."""
         s = np.asarray(s, dtype=complex).ravel()
         n, n_terms = self.A.shape[0], self.C.shape[0]
         logs = np.full((1 + n_terms, s.size), -np.inf + 0j)
@@ -403,7 +404,7 @@ class StateSpaceCharacteristic(AffineCharacteristic):
             if n == 0:
                 logs[0] = 0.0
                 logs[1:] = np.log(self.d.astype(complex))[:, None]
-                return normalised_columns(logs)
+                return normalised_columns(logs, scale)
             M = s[:, None, None] * np.eye(n)[None] - self.A[None]
             sign, log_abs = np.linalg.slogdet(M)
             regular = sign != 0
@@ -415,4 +416,4 @@ class StateSpaceCharacteristic(AffineCharacteristic):
             for i in np.flatnonzero(~regular):                                   # det(sI - A) = 0 exactly
                 for j in range(n_terms):
                     logs[1 + j, i] = np.log(complex(np.linalg.det(M[i] + np.outer(self.b, self.C[j]))))
-        return normalised_columns(logs)
+        return normalised_columns(logs, scale)

@@ -130,22 +130,36 @@ def _log_pole_factor(system: Any, s: np.ndarray) -> np.ndarray:
     body = system.plant.body if controlled else getattr(system, "body", None)
     if body is None:      # another model type: its own (product) scale
         return np.log(np.asarray(system.characteristic_scale(s), dtype=complex))
+    # connectors with the same law share one logarithm (a chain of 500 equal springs: one log, times 500)
+    multiplicity: dict[tuple, list] = {}
+    for element in body:
+        if isinstance(element, Connector):
+            co = element.axial_coefficients()        # what connector_stiffness reads
+            key = (type(element).connector_stiffness, co.inertia, co.damping, co.stiffness)
+            multiplicity.setdefault(key, [element, 0])[1] += 1
     out = np.zeros(s.shape, dtype=complex)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        for element in body:
-            if isinstance(element, Connector):
-                out = out + np.log(np.asarray(element.connector_stiffness(s), dtype=complex))
+        for element, count in multiplicity.values():
+            log = np.log(np.asarray(element.connector_stiffness(s), dtype=complex))
+            out.real += count * log.real           # part by part: count * (-inf + 0j) would give nan
+            out.imag += count * log.imag
         for lp in (system.loops if controlled else ()):
             if lp.is_lti:
                 out = out + np.log(np.asarray(lp.denominator(s), dtype=complex))
     return out
 
 
-def normalised_columns(logs: np.ndarray) -> np.ndarray:
-    """``exp(logs)`` divided by the largest modulus in each column (zeros where log is -inf)."""
+def normalised_columns(logs: np.ndarray, scale: np.ndarray | None = None) -> np.ndarray:
+    """``exp(logs)`` divided by the largest modulus in each column (zeros where log is -inf).
+
+    ``scale``: when given (shape ``(n_columns,)``, float), receives the log of each column's divisor.  The
+    divisor is a positive, not a holomorphic, function of ``s``: Cauchy integrals over small circles
+    (:mod:`ctmm.roots`' Newton steps) multiply it back."""
     finite = np.isfinite(logs.real)
     top = np.max(np.where(finite, logs.real, -np.inf), axis=0)
     top = np.where(np.isfinite(top), top, 0.0)
+    if scale is not None:
+        scale[...] = top
     with np.errstate(under="ignore", invalid="ignore", over="ignore"):
         values = np.exp(logs - top)
     return np.where(finite, values, 0.0)
@@ -167,22 +181,26 @@ class AffineCharacteristic:
     executor: Any = None
     n_evaluations: int = 0
 
-    def components_at(self, s: np.ndarray) -> np.ndarray:
+    def components_at(self, s: np.ndarray, scale: np.ndarray | None = None) -> np.ndarray:
         """``[base, T_1, ...]`` at ``s`` (shape ``(1 + n_terms, n)``), divided by a positive
-        function of ``s``."""
+        function of ``s`` (its log written into ``scale`` when given, shape ``(n,)``)."""
         raise NotImplementedError
 
-    def components(self, s: Any) -> tuple[np.ndarray, np.ndarray]:
-        """``(Delta_0 D, T)`` at ``s``: shapes ``(n,)`` and ``(n_terms, n)`` (scaled, see Notes)."""
+    def components(self, s: Any, scale: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``(Delta_0 D, T)`` at ``s``: shapes ``(n,)`` and ``(n_terms, n)`` (scaled, see Notes); ``scale`` (shape
+        ``(n,)``, float), when given, receives the log of the positive divisor at each ``s``."""
         s = np.asarray(s, dtype=complex).ravel()
         self.n_evaluations += s.size
         executor = self.executor
         if executor is None or s.size < 64:
-            out = self.components_at(s)
+            out = self.components_at(s, scale)
         else:
             chunks = np.array_split(s, executor_workers(executor))
             parts = list(executor.map(_components_chunk, [self] * len(chunks), chunks))
             out = np.concatenate(parts, axis=1)
+            if scale is not None:
+                scale[...] = out[-1].real
+            out = out[:-1]
         return out[0], out[1:]
 
     def __getstate__(self) -> dict:
@@ -235,16 +253,24 @@ class AffineCharacteristic:
         """Vectorised ``s -> Delta(s)`` at one parameter set (for :mod:`ctmm.roots`)."""
         k, tau, w = self.parameters(1, gain, delay, weights)
 
-        def delta(s: np.ndarray) -> np.ndarray:
+        def scaled(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """``(Delta(s) e^-g(s), g(s))``: the values of ``delta`` and the log of their positive divisor."""
             s = np.asarray(s, dtype=complex)
-            base, terms = self.components(s.ravel())
-            return self.combine(s.ravel(), base, terms, k, tau, w)[0].reshape(s.shape)
+            scale = np.zeros(s.size)
+            base, terms = self.components(s.ravel(), scale)
+            return self.combine(s.ravel(), base, terms, k, tau, w)[0].reshape(s.shape), scale.reshape(s.shape)
 
+        def delta(s: np.ndarray) -> np.ndarray:
+            return scaled(s)[0]
+
+        delta.scaled = scaled          # type: ignore[attr-defined]
         return delta
 
 
 def _components_chunk(model: "AffineCharacteristic", s: np.ndarray) -> np.ndarray:
-    return model.components_at(s)
+    """The components at ``s`` with the log of their divisor as a last row."""
+    scale = np.zeros(s.size)
+    return np.vstack([model.components_at(s, scale), scale[None, :]])
 
 
 class LoopCharacteristic(AffineCharacteristic):
@@ -344,8 +370,9 @@ class LoopCharacteristic(AffineCharacteristic):
         self._phase = None
 
     # -- components ---------------------------------------------------------------------
-    def components_at(self, s: np.ndarray) -> np.ndarray:
-        """``[D Delta_0, T_1, ...]`` at ``s``, divided by the largest modulus at each ``s``.
+    def components_at(self, s: np.ndarray, scale: np.ndarray | None = None) -> np.ndarray:
+        """``[D Delta_0, T_1, ...]`` at ``s``, divided by the largest modulus at each ``s`` (its log written into
+        ``scale`` when given).
 
         Fast path: with the loop open, ``Delta_0`` (log of the boundary determinant) and the
         responses ``P_j`` of the sensed signals to a unit actuator force come from the open chain
@@ -365,20 +392,27 @@ class LoopCharacteristic(AffineCharacteristic):
             if np.all(np.isfinite(log_open)):
                 logs = self._component_logs(s, log_open, solution)
                 if not np.isnan(logs).any():
-                    out[:] = normalised_columns(logs)
+                    out[:] = normalised_columns(logs, scale)
                     return out
         except (SingularSystemError, np.linalg.LinAlgError):   # a root of the open chain at a sample
             pass
         log_open = _log_characteristic(self.open_system, s)
         regular = np.isfinite(log_open)
+        part = np.zeros(s.size)               # the logs of the divisors, copied into scale at the end
         if regular.any():
             try:
+                inside = np.zeros(int(regular.sum()))
                 out[:, regular] = normalised_columns(entire_logs(self._open_logs, s[regular],
-                                                                 label=f"loop {self.loop.name!r}"))
+                                                                 label=f"loop {self.loop.name!r}"), inside)
+                part[regular] = inside
             except SingularSystemError:
                 regular[:] = False
         if not regular.all():
-            out[:, ~regular] = self._components_closed(s[~regular]) * self._closed_phase()
+            inside = np.zeros(int((~regular).sum()))
+            out[:, ~regular] = self._components_closed(s[~regular], inside) * self._closed_phase()
+            part[~regular] = inside
+        if scale is not None:
+            scale[...] = part
         return out
 
     def _closed_phase(self) -> complex:
@@ -428,13 +462,13 @@ class LoopCharacteristic(AffineCharacteristic):
                 logs.append(log_base + controller + np.log(response.astype(complex)))
             return np.array(logs)
 
-    def _components_closed(self, s: np.ndarray) -> np.ndarray:
+    def _components_closed(self, s: np.ndarray, scale: np.ndarray | None = None) -> np.ndarray:
         logs = [_log_characteristic(self._base, s)]
         if self.loop.is_lti:
             with np.errstate(divide="ignore"):
                 logs[0] = logs[0] + np.log(self.loop.denominator(s).astype(complex))
         logs += [_log_characteristic(g, s) for g in self._groups]
-        values = normalised_columns(np.array(logs))
+        values = normalised_columns(np.array(logs), scale)
         base = values[0]
         groups = values[1:] - base
         terms = groups[self._group_of] * s[None, :] ** self._power[:, None]
