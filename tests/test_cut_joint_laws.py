@@ -124,6 +124,33 @@ def test_stored_cut_forces_are_the_solve_at_each_row_without_solving_it_twice():
         np.testing.assert_array_equal(force, solve(q, v, t)[1])
 
 
+def test_dae_rows_carry_the_drift_and_forces_of_one_solve_per_row():
+    """The DAE reference's stored drift (the joints' ``Phi``, not the drive row), joint forces and drive moment are
+    ``constraints`` and ``solve`` at each row exactly, from one evaluation of the constraints per stored row (the
+    integration's own count does not depend on the output grid)."""
+    drive = _drive()
+    dae = four_bar_dae(None)
+    dae.add_drive("rocker", "coupler", drive["angle"], drive["angle_rate"], drive["angle_acceleration"])
+    loop = KinematicLoopModel(_loop(None).tree, [CutJoint("h3", parent="rocker.out", child="coupler.out", **drive)])
+    q0, v0 = loop.consistent_state([math.pi / 2, 0.5, 1.8], [0.0, 0.0, 0.0])
+    state = dae.assemble(dict(zip(BODIES, q0)), dict(zip(BODIES, v0)))
+    constraints, calls = dae.constraints, []
+    dae.constraints = lambda q, v: (calls.append(1), constraints(q, v))[1]
+    counts, runs = [], []
+    for rows in (3, 21):
+        calls.clear()
+        runs.append(dae.simulate(state, 0.02, t_eval=np.linspace(0.0, 0.02, rows)))
+        counts.append(len(calls))
+    assert counts[1] - counts[0] == 21 - 3
+    run = runs[1]
+    for k, (t, q, v) in enumerate(zip(run.t, run.q, run.v)):
+        assert run.drift[k] == np.max(np.abs(constraints(q, v)[0]))
+        multipliers = dae.solve(q, v, 10.0, t)[1]
+        np.testing.assert_array_equal(run.forces[k].ravel(), multipliers[:-1])
+        np.testing.assert_array_equal(run.drive_moments[k], multipliers[-1:])
+    assert np.max(run.drift) > 0.0 and np.ptp(run.drive_moments) > 0.0
+
+
 def _dae_manifold_state(dae, crank: float, crank_rate: float, guess):
     """DAE state with the crank at ``crank`` [rad] and ``crank_rate`` [rad/s], the others from the DAE's own
     loop constraint (positions by a root solve, rates by its linear velocity constraint)."""
