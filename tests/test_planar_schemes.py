@@ -287,7 +287,9 @@ def cross_coupled():
 def test_non_collocated_feedback_through_inputs_keeps_the_order_and_newton(cross_coupled, scheme):
     model, q0, v0, T, ref, inputs = cross_coupled
     order = EXPECTED_ORDER.get(scheme, 2)
-    dts = [0.01, 0.005, 0.0025]
+    # the second-order schemes are asymptotic from 10 ms (measured slopes 2.000 / 2.000 Newmark, 1.982 / 1.995
+    # generalized-alpha with a third step of 2.5 ms); backward Euler (1.36 rad at 10 ms) needs the third step
+    dts = [0.01, 0.005, 0.0025] if order == 1 else [0.01, 0.005]
     runs = [simulate_implicit(model, q0, v0, t_final=T, dt=dt, scheme=scheme, inputs=inputs) for dt in dts]
     errors = np.array([np.max(np.abs(run.q[-1] - ref)) for run in runs])
     slopes = np.log2(errors[:-1] / errors[1:])

@@ -463,32 +463,45 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
     check_consistent(model, q, v, "q0, qdot0")
     n = len(q)
     evaluations = [0]
+    # RK4: the cut forces of the first stage at every stored time (the stored row itself), reused by loop_history
+    solved: dict[float, tuple[bytes, np.ndarray]] = {}
+    stored = (lambda t: False) if method != "rk4" else (
+        lambda t: (k := int(round(t / dt))) * dt == t and k % store_every == 0)
 
     def rate(t, y):
         evaluations[0] += 1
-        qdd, _ = model.solve(y[:n], y[n:], t)
+        qdd, forces = model.solve(y[:n], y[n:], t)
+        if stored(t):
+            solved[t] = (y.tobytes(), forces)
         return np.concatenate([y[n:], qdd])
 
     family, step = model.tree.deformable_family, dt if method == "rk4" else None
     check = None if family is None else (    # the tree runs' rule: a modal beam's deflection, a subsystem's size
         lambda t, y: family.check_divergence(model.tree, y[:n], float(t), step, method))
     return integrate_loop_run(
-        lambda t, q_rows, qdot_rows, wall: loop_history(model, t, q_rows, qdot_rows, method, wall, evaluations[0]),
+        lambda t, q_rows, qdot_rows, wall: loop_history(model, t, q_rows, qdot_rows, method, wall, evaluations[0],
+                                                        solved),
         rate, np.concatenate([q, v]), n, t_final=t_final, dt=dt, method=method, finish=lambda y, t: y, rtol=rtol,
         atol=atol, store_every=store_every, t_eval=t_eval, max_step=max_step, label=f"kinematic loop {model.name!r}",
         element=model.cuts[0].name, velocity_label="qdot", model=model if projection else None, check=check)
 
 
 def loop_history(model: KinematicLoopModel, t: np.ndarray, q: np.ndarray, qdot: np.ndarray, method: str,
-                 wall: float, evaluations: int) -> KinematicLoopSimulation:
+                 wall: float, evaluations: int, solved: dict | None = None) -> KinematicLoopSimulation:
     """Stored rows of a run (times [s], tree coordinates, rates) with the cut forces [N] solved again at each row and
-    the drift ``max |Phi|`` [m], ``max |Phi'|`` [m/s]; ``wall`` [s] and ``evaluations`` as the run reports them."""
+    the drift ``max |Phi|`` [m], ``max |Phi'|`` [m/s]; ``wall`` [s] and ``evaluations`` as the run reports them.
+    ``solved``: ``{t: (state bytes, cut forces)}`` the run already solved at exactly a row's time and state (the
+    same numbers :meth:`KinematicLoopModel.solve` gives again), used instead of solving again."""
     forces, drift, drift_rate = [], [], []
+    solved = {} if solved is None else solved
     for t_k, q_k, v_k in zip(t, q, qdot):
         phi, phi_dot = model.constraints(q_k, v_k, t_k)
         drift.append(np.max(np.abs(phi)))
         drift_rate.append(np.max(np.abs(phi_dot)))
-        forces.append(model.solve(q_k, v_k, t_k)[1])
+        state, known = solved.get(float(t_k), (None, None))
+        if state is None or state != np.concatenate([q_k, v_k]).tobytes():
+            known = model.solve(q_k, v_k, t_k)[1]
+        forces.append(known)
     return KinematicLoopSimulation(model, np.asarray(t), np.asarray(q), np.asarray(qdot),
                                    np.array(forces).reshape(len(t), len(model.cuts), 2), np.array(drift),
                                    np.array(drift_rate), method, wall, evaluations)

@@ -324,10 +324,15 @@ class PlanarDAE:
               ) -> tuple[np.ndarray, np.ndarray]:
         """Accelerations ``q''`` and multipliers ``mu`` (joint forces on the ``b`` bodies) at ``(q, v)`` and time
         ``t`` [s] (the motors' laws; delayed motors read the run in progress)."""
+        return self._solve_rows(q, v, baumgarte, t)[:2]
+
+    def _solve_rows(self, q: np.ndarray, v: np.ndarray, baumgarte: float, t: float
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`solve` and the joints' ``Phi`` [m] at ``(q, v)`` (the drift of a stored row)."""
         nb = len(self.bodies)
         mass = np.concatenate([[b.mass, b.mass, b.inertia] for b in self.bodies])
-        phi, phi_dot, jac, gamma = (np.concatenate([x, y]) for x, y in zip(self.constraints(q, v),
-                                                                            self._drive_rows(q, v, t)))
+        joints = self.constraints(q, v)
+        phi, phi_dot, jac, gamma = (np.concatenate([x, y]) for x, y in zip(joints, self._drive_rows(q, v, t)))
         m = len(phi)
         A = np.zeros((3 * nb + m, 3 * nb + m))
         A[:3 * nb, :3 * nb] = np.diag(mass)
@@ -337,7 +342,7 @@ class PlanarDAE:
                               gamma - 2.0 * baumgarte * phi_dot - baumgarte ** 2 * phi])
         x = np.linalg.solve(A, rhs)
         # M q'' = Q - Phi_q^T x: the force on body b of joint k is +x_k (Phi_q block of b is -I)
-        return x[:3 * nb], x[3 * nb:]
+        return x[:3 * nb], x[3 * nb:], joints[0]
 
     def simulate(self, state: tuple[np.ndarray, np.ndarray], t_final: float, *, t_eval: np.ndarray | None = None,
                  baumgarte: float = 10.0, rtol: float = 1e-11, atol: float = 1e-12) -> DAESolution:
@@ -385,8 +390,9 @@ class PlanarDAE:
         t_out = np.concatenate(times)
         y_out = np.concatenate(states, axis=1)
         q, v = y_out[:n].T, y_out[n:].T
-        drift = np.array([np.max(np.abs(self.constraints(qi, vi)[0]), initial=0.0) for qi, vi in zip(q, v)])
-        multipliers = np.array([self.solve(qi, vi, baumgarte, ti)[1] for ti, qi, vi in zip(t_out, q, v)])
+        solved = [self._solve_rows(qi, vi, baumgarte, ti)[1:] for ti, qi, vi in zip(t_out, q, v)]   # one per row
+        drift = np.array([np.max(np.abs(phi), initial=0.0) for _, phi in solved])
+        multipliers = np.array([mu for mu, _ in solved])
         rows = 2 * len(self.joints)
         forces = multipliers[:, :rows].reshape(len(t_out), -1, 2)
         return DAESolution(t_out, q, v, drift, forces, tuple(b.name for b in self.bodies), multipliers[:, rows:])
