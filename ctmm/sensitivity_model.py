@@ -253,13 +253,22 @@ class LoopCharacteristicMatrix:
         D = (s[:, None, None] ** 2 * self.M + s[:, None, None] * self.C + self.K).astype(complex)
         for i in range(len(self.loops)):
             if i != loop:
-                k = np.array([self.loop_gain(i, x)[0] for x in s])
-                c = np.array([self.sensor(i, x)[0] for x in s])
+                k, c = self._loop_gains(i, s), self._sensors(i, s)
                 D += k[:, None, None] * self.actuator_vectors[i][None, :, None] * c[:, None, :]
         x = np.linalg.solve(D, np.broadcast_to(self.actuator_vectors[loop], (s.size, self.n))[..., None])[..., 0]
-        c = np.array([self.sensor(loop, v)[0] for v in s])
-        k = np.array([self.loop_gain(loop, v)[0] for v in s])
-        return k * np.einsum("wn,wn->w", c, x)
+        return self._loop_gains(loop, s) * np.einsum("wn,wn->w", self._sensors(loop, s), x)
+
+    def _loop_gains(self, i: int, s: np.ndarray) -> np.ndarray:
+        """``K_l(s)`` of :meth:`loop_gain` over an array of ``s`` (the same operations, element by element)."""
+        num, den = self.controller_coefficients[i]
+        return np.polyval(num, s) / np.polyval(den, s) * np.exp(-s * self.loops[i].delay)
+
+    def _sensors(self, i: int, s: np.ndarray) -> np.ndarray:
+        """``c_l(s)`` of :meth:`sensor` over an array of ``s``: shape ``(len(s), n)``."""
+        c = np.zeros((s.size, self.n), dtype=complex)
+        for vec, p, w in self.sensor_terms[i]:
+            c += (w * s ** p)[:, None] * vec
+        return c
 
     def scale(self, s: complex) -> float:
         """Size of the terms of ``Delta(s)``: ``|s|^2 |M| + |s| |C| + |K| + sum |K_l| |b_l| |c_l|``

@@ -44,9 +44,11 @@ MAX_SENSITIVITY = 2.5      # max |1/(1 + L)|
 ROOT_REGION = {"re_min": -3.0, "im_max": 12.0}
 
 
-def system_with(kp: float, kd: float) -> ControlledChain:
-    """The seed chain with the PD loop ``u = -(kp x6 + kd v6)`` on m2."""
-    return ControlledChain(common.plant(), [Feedback("pd", [("m6.x", kp), ("m6.v", kd)], "m2", gain=1.0)])
+def system_with(kp: float, kd: float, plant: ctmm.Chain | None = None) -> ControlledChain:
+    """The seed chain (``plant``: one built by ``common.plant()``, shared: a chain is read-only) with the PD loop
+    ``u = -(kp x6 + kd v6)`` on m2."""
+    return ControlledChain(common.plant() if plant is None else plant,
+                           [Feedback("pd", [("m6.x", kp), ("m6.v", kd)], "m2", gain=1.0)])
 
 
 def _constraint_map(cache: PlantCache, kp: np.ndarray, kd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -88,7 +90,8 @@ def run(output_dir: Path, quick: bool = False) -> dict:
 
     output_dir = Path(output_dir)
     omega = np.linspace(0.01, 30.0, 1500 if quick else 4000)
-    start_system = system_with(common.KA, 0.0)
+    plant = common.plant()                      # one chain for every system of the run (the maps: 600+)
+    start_system = system_with(common.KA, 0.0, plant)
     objective = Quantity("spectral_abscissa")
     constraints = [Constraint(Quantity("delay_margin", loop="pd", omega=omega), lower=MIN_DELAY_MARGIN),
                    Constraint(Quantity("sensitivity_peak", loop="pd", omega=omega), upper=MAX_SENSITIVITY)]
@@ -134,12 +137,12 @@ def run(output_dir: Path, quick: bool = False) -> dict:
                                                    KD.ravel()[:: max(1, KP.size // 6)][:6])]
     start = time.perf_counter()
     for a, b in sample:
-        L = ctmm.control.loop_transfer_function(system_with(a, b), "pd", omega)("pd.L")
+        L = ctmm.control.loop_transfer_function(system_with(a, b, plant), "pd", omega)("pd.L")
         np.min(np.abs(1.0 + L))
     per_eval_tmm = (time.perf_counter() - start) / len(sample)
     abscissa_map = np.empty(KP.shape)
     for index in np.ndindex(KP.shape):
-        abscissa_map[index] = spectral_abscissa_sensitivity(system_with(KP[index], KD[index]), ()).value
+        abscissa_map[index] = spectral_abscissa_sensitivity(system_with(KP[index], KD[index], plant), ()).value
 
     # -- time domain --------------------------------------------------------------------------
     t_final = 8.0 if quick else 20.0

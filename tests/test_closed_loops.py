@@ -159,6 +159,22 @@ def test_the_dae_constraint_rows_are_consistent_with_their_positions():
         assert np.max(np.abs(phi)) > 0.1 and np.max(np.abs(gamma)) > 0.1          # off the manifold, moving
 
 
+def test_the_dae_constraint_rows_follow_joints_added_after_an_evaluation():
+    """The joints' index layout is built once per set of joints: a joint added after a first evaluation (closing
+    an open chain into a loop) adds its two rows, ``Phi`` of the new joint being ``P_a - P_b`` by hand."""
+    dae = PlanarDAE()
+    for name in ("a", "b"):
+        dae.add_body(name, mass=1.0, inertia=0.1, points={"in": (-0.5, 0.0), "out": (0.5, 0.0)})
+    dae.add_revolute(None, (0.0, 0.0), "a", "in")
+    dae.add_revolute("a", "out", "b", "in")
+    q, v = np.array([0.5, 0.1, 0.3, 1.2, 0.4, -0.2]), np.zeros(6)
+    assert dae.constraints(q, v)[2].shape == (4, 6)
+    dae.add_revolute(None, (1.5, 0.0), "b", "out")
+    phi, _, jac, _ = dae.constraints(q, v)
+    tip = q[3:5] + 0.5 * np.array([math.cos(q[5]), math.sin(q[5])])
+    assert jac.shape == (6, 6) and np.allclose(phi[4:], np.array([1.5, 0.0]) - tip, rtol=0.0, atol=1e-15)
+
+
 @pytest.mark.parametrize("flexible", [False, True], ids=["rigid", "modal_coupler"])
 def test_one_evaluation_of_the_terms_for_several_inputs_equals_separate_sweeps(flexible):
     """``solve_instant_inputs`` (the tree's body terms and hinge laws once, one sweep per inputs: the cut-load

@@ -119,6 +119,26 @@ def test_failing_user_signals_are_named_with_time_and_partial_result(make, eleme
         assert np.all(np.isfinite(partial.q)) and np.all(np.isfinite(partial.qdot))
 
 
+def test_user_signals_returning_one_number_in_any_form_are_accepted():
+    """A signal may return its number as a float, an int, a bool, a numpy scalar or a 0-d array, and (after
+    t = 0, where the model's check wants a scalar) a one-element array (the guard's contract): the accelerations
+    of a two-link chain are those of the Lagrange reference (independent equations)."""
+    forms = [lambda v: v, lambda v: np.float32(v), lambda v: np.array(v), lambda v: int(v), lambda v: True]
+    q, v = np.array([-1.0, -0.5]), np.array([0.3, -0.2])
+    for form in forms:
+        model = PlanarModel.chain("m", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0),
+                                        ActuatedHinge("h", torque=lambda t, form=form: form(1.0)),
+                                        RigidBody.uniform_link("b", mass=0.5, length=0.8)])
+        expected = PlanarLagrange(model).accelerations(q, v, 0.1)
+        np.testing.assert_allclose(accelerations(model, q, v, 0.1), expected, rtol=1e-10, atol=1e-12)
+    mixed = PlanarModel.chain("m", [Fixed("g"), ActuatedHinge("h1", torque=lambda t: np.array([1.0]) if t else 1.0),
+                                    RigidBody.uniform_link("a", mass=1.0, length=1.0),
+                                    ActuatedHinge("h2", torque=lambda t: 2.0),
+                                    RigidBody.uniform_link("b", mass=0.5, length=0.8)])
+    reference, rate, torque = mixed.hinge_laws(0.1)
+    assert torque.tolist() == [1.0, 2.0]
+
+
 def test_scipy_divergence_keeps_the_accepted_steps():
     model = _pendulum()
     with pytest.raises(SimulationError, match="'rod.theta'") as info:

@@ -105,6 +105,26 @@ def test_sign_and_scale_against_the_closed_form():
     assert relative(found.derivative[2], -1j * omega * H ** 2) < 1e-13
 
 
+def test_loop_transfer_over_a_grid_is_the_tmm_loop_transfer_function():
+    """The characteristic matrix's ``L_l(i w)`` over a frequency grid (one batched evaluation of the loop gains
+    and sensor rows) against the TMM's ``loop_transfer_function`` (the chain's transfer matrices), for both
+    loops of a two-loop chain with a dynamic (lead) controller, delays and an acceleration sensor: the other
+    loop closed in each (measured 2e-15)."""
+    import control
+
+    from ctmm.control import loop_transfer_function
+    from ctmm.sensitivity_model import LoopCharacteristicMatrix
+
+    system = ControlledChain(seed_chain(), [
+        Feedback("pd", [("m6.x", 5.0), ("m6.v", 1.0)], "m2", gain=control.tf([1.0, 2.0], [0.1, 1.0]), delay=0.05),
+        Feedback("inner", [("m4.x", 2.0), ("m2.a", 0.01)], "m4", gain=0.5, delay=0.02)])
+    omega = np.linspace(0.05, 30.0, 200)
+    model = LoopCharacteristicMatrix(system)
+    for i, name in enumerate(("pd", "inner")):
+        assert relative(model.loop_transfer(i, 1j * omega),
+                        loop_transfer_function(system, name, omega).response[0, 0]) < 1e-13, name
+
+
 def test_margin_derivatives_match_differences_of_margins():
     system = pd_system()
     omega = np.linspace(0.01, 30.0, 800)

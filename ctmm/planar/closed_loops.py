@@ -164,7 +164,10 @@ class KinematicLoopModel:
     def constraints(self, q, qdot, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """``Phi`` (child point minus parent point [m]; a driven cut also ``dtheta - angle(t)`` [rad]) and ``Phi'``
         [m/s, rad/s] of every cut, stacked (2 per cut, 3 per driven cut)."""
-        points = self._points_at(q, qdot, t)
+        return self._constraints_at(self._points_at(q, qdot, t), t)
+
+    def _constraints_at(self, points: dict, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`constraints` at the tree's ``points`` (:meth:`_points_at`) of the state."""
         phi, rate = [], []
         for cut, ((jp, ep), (jc, ec)) in zip(self.cuts, self._points):
             pp, vp, _ = self.cut_points.point(points, jp, ep)
@@ -277,7 +280,7 @@ class KinematicLoopModel:
         qdd0, a0 = solutions[0].qddot, self._relative(solutions[0], points, t)
         G = np.column_stack([self._relative(solution, points, t) - a0 for solution in solutions[1:]])
         dqdd = np.column_stack([solution.qddot - qdd0 for solution in solutions[1:]])
-        phi, phi_dot = self.constraints(q, qdot, t)
+        phi, phi_dot = self._constraints_at(points, t)
         alpha = self.baumgarte
         target = -a0 - 2.0 * alpha * phi_dot - alpha * alpha * phi
         condition = compliance_condition(G)

@@ -331,6 +331,9 @@ class PlanarModel:
             if joint.kind == DRIVEN:
                 self._driven.append((i, joint.hinge.angle, joint.hinge.rate,
                                      joint.hinge.acceleration))
+        self._driven_signals = ([f for _, a, r, c in self._driven for f in (a, r, c)],    # (functions, labels,
+                                [self.joint_names[i] for i, *_ in self._driven for _ in range(3)],   # parts) of
+                                [part for _ in self._driven for part in ("angle", "rate", "acceleration")])  # driven()
         self.nonlinear_hinges = {i: j.hinge for i, j in enumerate(self._joints) if isinstance(j.hinge, NonlinearHinge)}
         self._constant_laws = all(isinstance(f, Constant) for f in
                                   self._reference + self._reference_rate + self._torque)
@@ -501,10 +504,7 @@ class PlanarModel:
         (:class:`~ctmm.planar.signals.SignalError` naming the joint when a prescribed motion fails)."""
         if not self._driven:
             return []
-        functions = [f for _, a, r, c in self._driven for f in (a, r, c)]
-        labels = [self.joint_names[i] for i, *_ in self._driven for _ in range(3)]
-        parts = [part for _ in self._driven for part in ("angle", "rate", "acceleration")]
-        values = signal_values(functions, t, labels, parts).reshape(-1, 3)
+        values = signal_values(self._driven_signals[0], t, *self._driven_signals[1:]).reshape(-1, 3)
         return [(i, float(v[0]), float(v[1]), float(v[2])) for (i, *_), v in zip(self._driven, values)]
 
     # -- kinematics ---------------------------------------------------------------------------

@@ -39,15 +39,18 @@ def signal_values(functions: Sequence[Callable[[float], float]], t: float, label
     quote : bool
         Quote the label in the message.
 
-    The fast path is one list comprehension; only on failure is every function called again
-    one by one (:func:`ctmm.guard.call_user`, :func:`ctmm.guard.user_output`) to name it.
+    The fast path is one list comprehension over the user's own functions (a
+    :class:`ctmm.guard.UserFunction` is unwrapped: its per-call checks are the ones made here on all
+    values at once); when that does not give one finite number per signal, the functions are called
+    through their guards (which accept a one-element array as its number), and only on failure is
+    every function called again one by one (:func:`ctmm.guard.call_user`,
+    :func:`ctmm.guard.user_output`) to name it.
     """
-    try:
-        values = np.array([f(t) for f in functions], dtype=float)
-        if values.shape == (len(functions),) and np.all(np.isfinite(values)):
-            return values
-    except Exception:  # noqa: BLE001 - user code; found and named below
-        pass
+    values = _finite_values([f.function if type(f) is UserFunction else f for f in functions], t)
+    if values is None:
+        values = _finite_values(functions, t)
+    if values is not None:
+        return values
     if isinstance(parts, str):
         parts = [parts] * len(functions)
     for function, label, part in zip(functions, labels, parts):
@@ -58,3 +61,13 @@ def signal_values(functions: Sequence[Callable[[float], float]], t: float, label
         except SimulationError as exc:
             raise SignalError(str(exc), time=float(t), element=str(label)) from exc.__cause__
     raise SignalError(f"user signals returned an invalid set of values at t = {t:.6g} s", time=float(t))
+
+
+def _finite_values(functions: Sequence[Callable[[float], float]], t: float) -> np.ndarray | None:
+    """``[f(t) for f in functions]`` when that is one finite float per function, else None (whatever went wrong
+    is found and named by :func:`signal_values`)."""
+    try:
+        values = np.array([f(t) for f in functions], dtype=float)
+    except Exception:  # noqa: BLE001 - user code; found and named by the caller
+        return None
+    return values if values.shape == (len(functions),) and np.all(np.isfinite(values)) else None

@@ -51,6 +51,9 @@ def _rotation(theta: float) -> np.ndarray:
 _TURN = np.array([[0.0, -1.0], [1.0, 0.0]])
 
 
+_SIDE_SIGNS = np.array([1.0, -1.0])[:, None, None]    # joint sides a, b: Phi = P_a - P_b
+
+
 @dataclass
 class _Body:
     name: str
@@ -147,6 +150,7 @@ class PlanarDAE:
         self.motors: list[_Motor] = []
         self.drives: list[tuple] = []               # (a, b, angle, rate, acceleration): theta_b - theta_a = angle(t)
         self._history: Callable | None = None       # t -> (q, v) of the completed run (delayed motors)
+        self._layout: tuple | None = None          # (key, arrays) of _joint_layout
 
     def add_body(self, name: str, *, mass: float, inertia: float, points: Mapping[str, Sequence[float]]) -> None:
         """A body with ``mass`` [kg], ``inertia`` about its centre of mass [kg m^2] and named ``points``
@@ -265,30 +269,46 @@ class PlanarDAE:
         r = _rotation(q[3 * i + 2]) @ s
         return q[3 * i:3 * i + 2] + r, v[3 * i:3 * i + 2] + v[3 * i + 2] * (_TURN @ r)
 
+    def _joint_layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(bodies, points, jacobian)`` of the joints, built once per set of bodies and joints: body indices
+        ``(2, nj)`` of sides ``a`` and ``b`` (the ground: ``n_bodies``), their body-frame points ``(2, nj, 2)``
+        and ``Phi_q`` ``(nj, 2, 3 (nb + 1))`` with its constant (translation) entries, the rotation columns 0."""
+        nb = len(self.bodies)
+        key = (nb, tuple(map(id, self.joints)))
+        cached = self._layout
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        bodies = np.array([[nb if j.a is None else j.a for j in self.joints], [j.b for j in self.joints]], dtype=int)
+        points = np.array([[j.point_a for j in self.joints], [j.point_b for j in self.joints]], dtype=float)
+        rows = np.arange(len(self.joints))
+        jac = np.zeros((len(self.joints), 2, 3 * (nb + 1)))
+        for side, sign in ((0, 1.0), (1, -1.0)):
+            jac[rows, 0, 3 * bodies[side]] = sign
+            jac[rows, 1, 3 * bodies[side] + 1] = sign
+        self._layout = (key, (bodies, points, jac))
+        return bodies, points, jac
+
     def constraints(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``Phi``, ``Phi'``, ``Phi_q`` and ``gamma`` of all joints (all joints at once: the ground is one more
-        body at rest at the origin, its columns dropped)."""
+        """``Phi``, ``Phi'``, ``Phi_q`` and ``gamma`` of all joints (all joints at once, both sides of every joint
+        at once: the ground is one more body at rest at the origin, its columns dropped)."""
         nb, nj = len(self.bodies), len(self.joints)
         if nj == 0:
             return np.zeros(0), np.zeros(0), np.zeros((0, 3 * nb)), np.zeros(0)
+        bodies, s, jac0 = self._joint_layout()
         q_all = np.concatenate([np.asarray(q, float), np.zeros(3)]).reshape(nb + 1, 3)
         v_all = np.concatenate([np.asarray(v, float), np.zeros(3)]).reshape(nb + 1, 3)
+        theta, omega = q_all[bodies, 2], v_all[bodies, 2]                     # (2, nj): sides a, b
+        cos, sin = np.cos(theta), np.sin(theta)
+        r = np.stack([cos * s[..., 0] - sin * s[..., 1], sin * s[..., 0] + cos * s[..., 1]], axis=-1)
+        turned = np.stack([-r[..., 1], r[..., 0]], axis=-1)                   # _TURN @ r
+        signed = _SIDE_SIGNS * turned
+        phi = (_SIDE_SIGNS * (q_all[bodies, :2] + r)).sum(axis=0)            # P_a - P_b
+        phi_dot = (_SIDE_SIGNS * (v_all[bodies, :2] + omega[..., None] * turned)).sum(axis=0)
+        gamma = (_SIDE_SIGNS * r * (omega ** 2)[..., None]).sum(axis=0)
+        jac = jac0.copy()
         rows = np.arange(nj)
-        phi, phi_dot = np.zeros((nj, 2)), np.zeros((nj, 2))
-        jac, gamma = np.zeros((nj, 2, 3 * (nb + 1))), np.zeros((nj, 2))
-        for side, sign in (("a", 1.0), ("b", -1.0)):
-            bodies = np.array([nb if getattr(joint, side) is None else getattr(joint, side) for joint in self.joints])
-            s = np.array([getattr(joint, f"point_{side}") for joint in self.joints])
-            theta, omega = q_all[bodies, 2], v_all[bodies, 2]
-            cos, sin = np.cos(theta), np.sin(theta)
-            r = np.column_stack([cos * s[:, 0] - sin * s[:, 1], sin * s[:, 0] + cos * s[:, 1]])
-            turned = np.column_stack([-r[:, 1], r[:, 0]])                   # _TURN @ r
-            phi += sign * (q_all[bodies, :2] + r)
-            phi_dot += sign * (v_all[bodies, :2] + omega[:, None] * turned)
-            jac[rows, 0, 3 * bodies] = sign
-            jac[rows, 1, 3 * bodies + 1] = sign
-            jac[rows, :, 3 * bodies + 2] = sign * turned
-            gamma += sign * r * (omega ** 2)[:, None]
+        jac[rows, :, 3 * bodies[0] + 2] = signed[0]
+        jac[rows, :, 3 * bodies[1] + 2] = signed[1]
         return phi.ravel(), phi_dot.ravel(), jac[:, :, :3 * nb].reshape(2 * nj, 3 * nb), gamma.ravel()
 
     def _generalised_forces(self, q: np.ndarray, v: np.ndarray, t: float = 0.0) -> np.ndarray:
