@@ -306,11 +306,19 @@ def animate(result: Any, path: str | os.PathLike, *, frames: int | None = 60, fp
         axes.set_title(f"{heading}  t = {frame.time:.3f} s")
         return [*lines, dots]
 
-    movie = mpl_animation.FuncAnimation(figure, draw, frames=len(drawn), blit=False)
+    # The writer grabs each picture with one savefig: one rendering per frame (FuncAnimation.save rendered every
+    # frame twice, for the canvas's draw_idle after the update and for the grab).  The GIF keeps the figure's
+    # colours as they are (Pillow takes transparency); an MP4 frame is opaque: the figure's face over white.
+    red, green, blue, alpha = figure.get_facecolor()
+    opaque = {} if suffix == ".gif" else {"facecolor": tuple(alpha * np.array([red, green, blue]) + 1 - alpha),
+                                          "transparent": False}
     temporary = target.with_name(f".{target.stem}.{os.getpid()}.tmp{suffix}")
     try:
         writer = mpl_animation.PillowWriter(fps=fps) if suffix == ".gif" else mpl_animation.FFMpegWriter(fps=fps)
-        movie.save(temporary, writer=writer, dpi=dpi)
+        with writer.saving(figure, temporary, dpi):
+            for k in range(len(drawn)):
+                draw(k)
+                writer.grab_frame(**opaque)
         os.replace(temporary, target)
     finally:
         plt.close(figure)

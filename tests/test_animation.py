@@ -98,6 +98,19 @@ def test_animate_writes_a_gif_with_the_frames_asked(tmp_path, name):
         assert image.format == "GIF" and image.n_frames == 3
 
 
+def test_animate_renders_each_frame_once(tmp_path, monkeypatch):
+    """The figure is rendered once per picture written (the grab), not a second time per frame for the canvas's
+    idle redraw (FuncAnimation.save did both: twice the drawing time of every animation)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    renders = []
+    draw = FigureCanvasAgg.draw
+    monkeypatch.setattr(FigureCanvasAgg, "draw", lambda canvas, *a, **k: (renders.append(1), draw(canvas, *a, **k))[1])
+    _, result = _run("hinge_spring_motor")
+    result.animate(tmp_path / "run.gif", frames=4, dpi=40)
+    assert len(renders) == 4
+
+
 def test_refusals(tmp_path):
     _, planar = _run("pendulum_chain", t_final=0.01)
     with pytest.raises(ModelError, match=r"one of \.gif, \.mp4, got suffix '\.avi'"):

@@ -105,6 +105,11 @@ def _is_type_checking(test: ast.expr) -> bool:
         isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
 
 
+#: The fields that hold statements (``ast.stmt`` lists, and the ``except`` / ``case`` clauses holding them).  An
+#: import is a statement, so the scan descends only these: expressions (most of the tree) hold no import.
+STATEMENT_FIELDS = ("body", "orelse", "finalbody", "handlers", "cases")
+
+
 def _imports(tree: ast.AST):
     """Every import statement with a flag: made lazily (in a function body or under TYPE_CHECKING)."""
     stack = [(tree, False)]
@@ -117,8 +122,11 @@ def _imports(tree: ast.AST):
             stack.extend((child, True) for child in node.body)
             stack.extend((child, lazy) for child in node.orelse)
             continue
-        inner = lazy or isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda))
-        stack.extend((child, inner) for child in ast.iter_child_nodes(node))
+        inner = lazy or isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+        for field in STATEMENT_FIELDS:
+            children = getattr(node, field, None)
+            if isinstance(children, list):       # a Lambda's or an IfExp's ``body`` is an expression: no import
+                stack.extend((child, inner) for child in children)
 
 
 def _within(module: str, package: str) -> bool:
@@ -398,6 +406,69 @@ def test_scanner_finds_every_rule(tmp_path):
         ("long module", "lib.long"), ("reference import", "lib.user: lib.reference.model"),
         ("reference dependency", "lib.reference.helper: lib.a"),
     }
+
+
+def test_import_scan_finds_imports_in_every_statement_context():
+    """The scan descends statement fields only: on a module with an import in every place the grammar allows one,
+    it finds each import that :func:`ast.walk` (every node) finds, with the right lazy flag."""
+    source = textwrap.dedent("""
+        import a0
+        from typing import TYPE_CHECKING
+        if TYPE_CHECKING:
+            import lazy1
+        else:
+            import a2
+        if a0:
+            import a3
+        elif a0:
+            import a4
+        else:
+            import a5
+        for _ in a0:
+            import a6
+        else:
+            import a7
+        while a0:
+            import a8
+        else:
+            import a9
+        with a0:
+            import a10
+        try:
+            import a11
+        except ImportError:
+            import a12
+        else:
+            import a13
+        finally:
+            import a14
+        try:
+            import a15
+        except* ImportError:
+            import a16
+        match a0:
+            case 1:
+                import a17
+        class C:
+            import a18
+            def method(self):
+                import lazy19
+        def f(g=lambda: 0):
+            import lazy20
+            class Inner:
+                import lazy21
+        async def h():
+            import lazy22
+            async with a0:
+                import lazy23
+            async for _ in a0:
+                import lazy24
+    """)
+    tree = ast.parse(source)
+    walked = {node.names[0].name for node in ast.walk(tree) if isinstance(node, (ast.Import, ast.ImportFrom))}
+    found = {node.names[0].name: lazy for node, lazy in _imports(tree)}
+    assert set(found) == walked and len(walked) == 26
+    assert {name for name, lazy in found.items() if lazy} == {name for name in walked if name.startswith("lazy")}
 
 
 def test_scanner_accepts_clean_code(tmp_path):
