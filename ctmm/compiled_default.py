@@ -168,8 +168,10 @@ inside its Newton iteration; measured with a PD on every hinge of pendulum chain
 15 coordinates and 0.10 at 30 (first call 7.0 s and 17 s CPU; module docstring); not measured beyond."""
 SCHEME_MAXIMUM_VELOCITIES = 10
 """Largest spatial model (velocities) whose DT-TMM schemes the default generates: the generated step is far ahead
-(0.28 ms against 14 ms at 10), but the first compile grows steeply (20 s CPU at 10 velocities, over 600 s at 20;
-module docstring), a fraction of the numpy time of :data:`MINIMUM_STEPS` steps only up to about this size."""
+(0.28 ms against 14 ms at 10), but the first compile grows steeply (20 s CPU at 10 velocities with the symbolic
+tangent, 15.5 s with the directional-derivative tangent used from 3 velocities (``benchmarks/spatial_scheme_tangent.py``,
+one run at load 9-10), over 600 s at 20; module docstring), a fraction of the numpy time of :data:`MINIMUM_STEPS`
+steps only up to about this size."""
 
 
 def _plant(system: Any) -> Any:
