@@ -351,12 +351,15 @@ def bushing_link(radial, moment=MOMENT):
 
 
 @pytest.mark.parametrize("radial", [RADIAL, ClearanceSpring(3000.0, clearance=0.002)], ids=["cubic", "clearance"])
-@pytest.mark.parametrize("kwargs, tolerance", [(dict(method="DOP853", rtol=1e-11, atol=1e-13, max_step=1e-3), 1e-7),
-                                               (dict(method="newmark", dt=2e-4), 2e-4)])
-def test_radial_spring_against_the_dae_reference(radial, kwargs, tolerance):
+# bounds on the angle [rad] and the pin offsets [m], 3-6x the errors measured (cubic / clearance spring): DOP853
+# 1.2e-11 / 1.1e-12 rad, 7.3e-12 / 6.7e-13 m; Newmark 2.8e-7 / 9.3e-7 rad, 1.8e-7 / 6.5e-7 m
+@pytest.mark.parametrize("kwargs, angle_bound, offset_bound",
+                         [(dict(method="DOP853", rtol=1e-11, atol=1e-13, max_step=1e-3), 6e-11, 4e-11),
+                          (dict(method="newmark", dt=2e-4), 3e-6, 2e-6)])
+def test_radial_spring_against_the_dae_reference(radial, kwargs, angle_bound, offset_bound):
     """A link on a hinge whose pin moves in a radial spring (a clearance: a pin in a hole), released
     sideways: ctmm's coordinates (offset d, angle) against the DAE with the same force element, 0.15 s (the pin
-    crosses its hole: ``l.dy`` spans 3.3e-3 / 5.5e-3 m; Newmark measured 2.8e-7 / 9.3e-7 rad)."""
+    crosses its hole: ``l.dy`` spans 3.3e-3 / 5.5e-3 m)."""
     from ctmm.reference.planar_dae import PlanarDAE
 
     model = bushing_link(radial)
@@ -370,9 +373,9 @@ def test_radial_spring_against_the_dae_reference(radial, kwargs, tolerance):
     reference = dae.simulate(state, 0.15, t_eval=result.time)
     inboard = reference.q[:, :2] + np.column_stack([-0.5 * np.cos(reference.angle("l")),
                                                     -0.5 * np.sin(reference.angle("l"))])
-    assert np.max(np.abs(result["l.theta"] - reference.angle("l"))) < tolerance
-    assert np.max(np.abs(result["l.dx"] - inboard[:, 0])) < tolerance * 0.1
-    assert np.max(np.abs(result["l.dy"] - inboard[:, 1])) < tolerance * 0.1
+    assert np.max(np.abs(result["l.theta"] - reference.angle("l"))) < angle_bound
+    assert np.max(np.abs(result["l.dx"] - inboard[:, 0])) < offset_bound
+    assert np.max(np.abs(result["l.dy"] - inboard[:, 1])) < offset_bound
     assert np.ptp(result["l.dy"]) > 1e-3                                   # the pin moves in its hole
 
 
