@@ -55,24 +55,47 @@ class Ops(Protocol):
         """``(rows, columns)`` of a matrix (without the batch axis)."""
 
 
-def _tiles(rows: Sequence[Sequence[Any]]) -> bool:
-    """Whether a grid of blocks is numpy arrays of one dtype, rank and batch whose heights agree along each row
-    and widths along each column: then the blocks tile the matrix and concatenation is :meth:`NumpyOps.block`
-    (no entry broadcasts into a larger slot)."""
+def _tiling(rows: Sequence[Sequence[Any]]) -> tuple[list[int], list[int], bool] | None:
+    """``(heights, widths, uniform)`` when a grid of blocks is numpy arrays of one rank whose heights agree along
+    each row and widths along each column (the blocks tile the matrix, no entry broadcasts into a larger slot),
+    ``uniform`` when they also share one dtype and batch (then concatenation is :meth:`NumpyOps.block`); else
+    None."""
     first = rows[0][0]
     if type(first) is not np.ndarray or first.ndim < 2:
-        return False
+        return None
     ndim, dtype, lead = first.ndim, first.dtype, first.shape[:-2]
     widths = [e.shape[-1] if type(e) is np.ndarray else -1 for e in rows[0]]
+    heights, uniform = [], True
     for row in rows:
         if len(row) != len(widths) or type(row[0]) is not np.ndarray:
-            return False
+            return None
         height = row[0].shape[-2]
         for e, width in zip(row, widths):
-            if (type(e) is not np.ndarray or e.ndim != ndim or e.dtype != dtype or e.shape[:-2] != lead
-                    or e.shape[-1] != width or e.shape[-2] != height):
-                return False
-    return True
+            if type(e) is not np.ndarray or e.ndim != ndim or e.shape[-1] != width or e.shape[-2] != height:
+                return None
+            uniform = uniform and e.dtype == dtype and e.shape[:-2] == lead
+        heights.append(height)
+    return heights, widths, uniform
+
+
+def _assembled(grid: Sequence[Sequence[Any]], heights: Sequence[int], widths: Sequence[int], batch: int | None = None,
+               batched: bool = True) -> np.ndarray:
+    """One allocation of the matrix of ``grid`` (row ``heights``, column ``widths``), one broadcasting assignment
+    per entry; ``batch``: the batch size (default the largest leading size of the entries); ``batched=False``: a
+    matrix without the batch axis."""
+    entries = [e for row in grid for e in row]
+    if batch is None:
+        batch = max(e.shape[0] for e in entries)
+    shape = (sum(heights), sum(widths))
+    out = np.empty((batch,) + shape if batched else shape, dtype=np.result_type(*entries, float))
+    r0 = 0
+    for row, height in zip(grid, heights):
+        c0 = 0
+        for entry, width in zip(row, widths):
+            out[..., r0:r0 + height, c0:c0 + width] = entry
+            c0 += width
+        r0 += height
+    return out
 
 
 class NumpyOps:
@@ -112,8 +135,12 @@ class NumpyOps:
                         break
                 else:
                     return np.concatenate(parts, axis=axis)
-        elif _tiles(rows):                          # a grid of equal-kind arrays that tile: no broadcasting
-            return np.concatenate([np.concatenate(row, axis=-1) for row in rows], axis=-2)
+        elif (tiling := _tiling(rows)) is not None:     # a grid of arrays that tile: no broadcasting into a slot
+            heights, widths, uniform = tiling
+            if uniform:                                 # one dtype and batch: concatenation
+                return np.concatenate([np.concatenate(row, axis=-1) for row in rows], axis=-2)
+            if rows[0][0].ndim == 3:                    # batches B and 1, or mixed dtypes: one allocation
+                return _assembled(rows, heights, widths)
         if all(isinstance(e, _SCALARS) for row in rows for e in row):     # numbers only: one call, B = 1
             out = np.array(rows)
             return (out if out.dtype.kind in "fc" else out.astype(float))[None]
@@ -128,17 +155,7 @@ class NumpyOps:
         heights = [max([e.shape[-2] for e in row if isinstance(e, np.ndarray) and e.ndim], default=1) for row in grid]
         widths = [max([row[c].shape[-1] for row in grid if isinstance(row[c], np.ndarray) and row[c].ndim],
                       default=1) for c in range(len(grid[0]))]
-        dtype = np.result_type(*[e for row in grid for e in row], float)
-        shape = (sum(heights), sum(widths))
-        out = np.empty(shape if batch is None and arrays else (batch or 1,) + shape, dtype=dtype)
-        r0 = 0
-        for row, height in zip(grid, heights):
-            c0 = 0
-            for entry, width in zip(row, widths):
-                out[..., r0:r0 + height, c0:c0 + width] = entry
-                c0 += width
-            r0 += height
-        return out
+        return _assembled(grid, heights, widths, batch or 1, batched=batch is not None or not arrays)
 
     matmul = staticmethod(np.matmul)           # no Python frame: the sweep's most frequent call
 

@@ -71,12 +71,8 @@ def rigid_body_terms(ops: Ops, *, mass: float, inertia: np.ndarray, center_of_ma
     inertia_world = ops.matmul(ops.matmul(rotation, constant(ops, inertia)), ops.transpose(rotation))
     rc_x = skew(ops, r_c)
     eye = ops.eye(3)
-    fill = ops.name == "numpy"                  # the same matrices, filled in place of the block assembly
-    if fill:
-        M = _filled([[eye * mass, rc_x * -mass], [rc_x * mass, inertia_world - ops.matmul(rc_x, rc_x) * mass]])
-    else:
-        M = ops.block([[eye * mass, rc_x * -mass],
-                       [rc_x * mass, inertia_world - ops.matmul(rc_x, rc_x) * mass]])
+    M = ops.block([[eye * mass, rc_x * -mass],
+                   [rc_x * mass, inertia_world - ops.matmul(rc_x, rc_x) * mass]])
     g = constant(ops, gravity)
     h_lin = g * -mass
     h_ang = cross(ops, r_c, g) * -mass
@@ -92,33 +88,11 @@ def rigid_body_terms(ops: Ops, *, mass: float, inertia: np.ndarray, center_of_ma
     for name, p in points.items():
         r_e = located(p)
         accel = ops.zeros(3, 1) if omega is None else cross(ops, omega, cross(ops, omega, r_e))
-        if fill:
-            K = _filled([[eye, skew(ops, r_e) * -1.0], [ops.zeros(3, 3), eye]])
-            c[name] = _filled([[accel], [ops.zeros(3, 1)]])
-        else:
-            K = ops.block([[eye, skew(ops, r_e) * -1.0], [ops.zeros(3, 3), eye]])
-            c[name] = ops.block([[accel], [ops.zeros(3, 1)]])
+        K = ops.block([[eye, skew(ops, r_e) * -1.0], [ops.zeros(3, 3), eye]])
+        c[name] = ops.block([[accel], [ops.zeros(3, 1)]])
         Kin[name] = K
         RF[name] = ops.transpose(K)
     return BodyTerms(M=M, h=ops.block([[h_lin], [h_ang]]), Kin=Kin, c=c, RF=RF)
-
-
-def _filled(grid: Sequence[Sequence[np.ndarray]]) -> np.ndarray:
-    """:meth:`~ctmm.ops.NumpyOps.block` of a grid of numpy batches ``(B or 1, 3, k)`` (rows of height 3, one
-    dtype): concatenated when they share the batch, else one allocation and one broadcasting assignment per
-    block (the same values, without the general assembly's checks)."""
-    blocks = [e for row in grid for e in row]
-    batches = {e.shape[0] for e in blocks}
-    if len(batches) == 1:                       # one batch: concatenation is the cheaper assembly
-        return np.concatenate([np.concatenate(row, axis=-1) for row in grid], axis=-2)
-    widths = [e.shape[-1] for e in grid[0]]
-    out = np.empty((max(batches), 3 * len(grid), sum(widths)), dtype=np.result_type(*blocks, float))
-    for r, row in enumerate(grid):
-        c0 = 0
-        for entry, width in zip(row, widths):
-            out[..., 3 * r:3 * r + 3, c0:c0 + width] = entry
-            c0 += width
-    return out
 
 
 @dataclass(frozen=True)
