@@ -97,33 +97,29 @@ class _NewtonStep:
         return self.solve(self.linearise(q, v, t, A, F, x), inputs)
 
     def linearise(self, q, v, t, A, F, x=None) -> dict:
-        """The tangent relations about ``(q, v, A, F, qdd = x)``, before actuator inputs."""
+        """The tangent relations about ``(q, v, A, F, qdd = x)``, before actuator inputs (plane vectors as complex
+        numbers ``x + i y``, as in :func:`~ctmm.planar.sweep.body_terms`)."""
         m = self.model
         bh2, gh = self.bh2, self.gh
         theta, omega = m.body_angles(q, v, t)
         K, b, E, (rcx, rcy, rx, ry) = body_terms(m, theta, omega, t)
+        rc, r = rcx + 1j * rcy, rx + 1j * ry
         alpha = A[:, 2]
         w2 = omega * omega
         # kinematic column of X: d/dtheta (X A_I + c) = -alpha_p r - w_p^2 k x r ; d/dw = -2 w r
         p = self.p
         ap, wp = alpha[p], omega[p]
-        gx = -(ap * rx - w2[p] * ry) * bh2 - 2.0 * wp * rx * gh
-        gy = -(ap * ry + w2[p] * rx) * bh2 - 2.0 * wp * ry * gh
-        gx = np.where(self.has_parent, gx, 0.0)
-        gy = np.where(self.has_parent, gy, 0.0)
-        E[:, 0] += gx
-        E[:, 1] += gy
-        E[:, 4] -= gx * ap
-        E[:, 5] -= gy * ap
+        g = -((ap + 1j * w2[p]) * r) * bh2 - 2.0 * wp * r * gh       # (gx, gy)
+        g = np.where(self.has_parent, g, 0.0)
+        ends = E.view(complex)                 # (k, l, c) of body_terms as complex columns: E[:, 0:2] += g ...
+        ends[:, 0] += g
+        ends[:, 2] -= g * ap
         # third column of K: d F_I / d theta, d F_I / d omega at fixed A_I, F_O
         mass = m.mass
-        acx = A[:, 0] - alpha * rcy - w2 * rcx
-        acy = A[:, 1] + alpha * rcx - w2 * rcy
+        ac = (A[:, 0] + 1j * A[:, 1] + alpha * (1j * rc)) - w2 * rc        # centre-of-mass acceleration
         gvx, gvy = m.gravity
-        hx = mass * (-alpha * rcx + w2 * rcy) * bh2 - 2.0 * mass * omega * rcx * gh
-        hy = mass * (-alpha * rcy - w2 * rcx) * bh2 - 2.0 * mass * omega * rcy * gh
-        ht = (-(rcx * mass * (acx - gvx) + rcy * mass * (acy - gvy))
-              - mass * w2 * (rcx * rcx + rcy * rcy))
+        h = mass * ((-alpha - 1j * w2) * rc) * bh2 - 2.0 * mass * omega * rc * gh     # (hx, hy)
+        ht = -(rc.conjugate() * mass * (ac - complex(gvx, gvy))).real - mass * w2 * (rcx * rcx + rcy * rcy)
         if len(m.load_body):
             loads = m.loads(t)
             lb = m.load_body
@@ -131,18 +127,19 @@ class _NewtonStep:
             rex = c * m.load_point[:, 0] - s * m.load_point[:, 1]
             rey = s * m.load_point[:, 0] + c * m.load_point[:, 1]
             np.add.at(ht, lb, rex * loads[:, 0] + rey * loads[:, 1])
-        child_term = np.where(self.has_parent, rx * F[:, 0] + ry * F[:, 1], 0.0)
-        np.add.at(ht, p, -child_term)
+        child_term = np.where(self.has_parent, (r.conjugate() * (F[:, 0] + 1j * F[:, 1])).real, 0.0)
+        ht -= np.bincount(p, child_term, minlength=m.n_bodies)       # each body's children, in order
         ht *= bh2
-        K[:, 2] += hx
-        K[:, 5] += hy
+        K[:, 2] += h.real
+        K[:, 5] += h.imag
         K[:, 8] += ht
-        b[:, 0] -= hx * alpha
-        b[:, 1] -= hy * alpha
+        h_alpha = h * alpha
+        b[:, 0] -= h_alpha.real
+        b[:, 1] -= h_alpha.imag
         b[:, 2] -= ht * alpha
         # exactly implicit hinge laws: tau = tau(iterate) - kappa (alpha_rel - alpha_rel_iterate)
         tau = hinge_torques(m, theta, omega, t)
-        rel = alpha - np.where(self.has_parent, alpha[p], 0.0)
+        rel = alpha - np.where(self.has_parent, ap, 0.0)
         kappa = self.kappa                      # nonlinear hinge laws: their tangent at the iterate (Newton)
         if m.nonlinear_hinges:
             kappa = kappa + law_kappa(m, *m.relative_angles(theta, omega), bh2, gh)
@@ -150,7 +147,7 @@ class _NewtonStep:
         alpha_d = [0.0] * m.n_bodies
         for i, _, _, acc in m.driven(t):
             alpha_d[i] = acc
-        return dict(q=q, v=v, x=x, F=F, theta=theta, alpha=alpha, rc=(rcx, rcy), K=K, b=b, E=E.tolist(),
+        return dict(q=q, v=v, x=x, F=F, theta=theta, alpha=alpha, rc=(rcx, rcy), K=K, b=b, E=E,
                     tau_tilde=tau_tilde, alpha_d=alpha_d, kappa=kappa)
 
     def solve(self, tangent: dict, inputs: ActuatorInputs | None = None):
@@ -399,11 +396,11 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
                     raise ConvergenceError(
                         f"implicit DT-TMM step {step + 1} (t = {t1:.6g} s): Newton iteration {it} "
                         f"failed ({exc}); last residual {residual:.3e}; reduce dt", time=t1) from exc
-                residual = float(np.max(np.abs(x_new - x))) if x.size else 0.0
+                residual = float(np.abs(x_new - x).max()) if x.size else 0.0
                 x = x_new
                 if not np.isfinite(residual):
                     break
-                if residual <= tolerance * (1.0 + float(np.max(np.abs(x)))):
+                if residual <= tolerance * (1.0 + float(np.abs(x).max())):
                     iterations[step] = it
                     break
             else:

@@ -335,12 +335,12 @@ class PlanarModel:
                                 [self.joint_names[i] for i, *_ in self._driven for _ in range(3)],   # parts) of
                                 [part for _ in self._driven for part in ("angle", "rate", "acceleration")])  # driven()
         self.nonlinear_hinges = {i: j.hinge for i, j in enumerate(self._joints) if isinstance(j.hinge, NonlinearHinge)}
-        self._constant_laws = all(isinstance(f, Constant) for f in
-                                  self._reference + self._reference_rate + self._torque)
-        if self._constant_laws:
-            self._law_values = (np.array([f.value for f in self._reference]),
-                                np.array([f.value for f in self._reference_rate]),
-                                np.array([f.value for f in self._torque]))
+        laws = self._reference + self._reference_rate + self._torque           # hinge_laws: constants once,
+        self._constant_laws = all(isinstance(f, Constant) for f in laws)        # the others evaluated per call
+        self._law_values = tuple(np.array([f.value if isinstance(f, Constant) else 0.0 for f in laws]).reshape(3, nb))
+        varying = [k for k, f in enumerate(laws) if not isinstance(f, Constant)]
+        self._varying_laws = (varying, [laws[k] for k in varying], [self.joint_names[k % nb] for k in varying],
+                              [("reference angle", "reference rate", "torque")[k // nb] for k in varying])
         # loads
         load_body, load_point, load_signals = [], [], []
         for i, body in enumerate(self._bodies):
@@ -402,7 +402,8 @@ class PlanarModel:
                 self.children[self.parent[i]].append(i)
         self._parent_list = self.parent.tolist()
         self._kind_list = self.joint_kind.tolist()
-        self._zeros = [0.0] * nb
+        self._zeros = np.zeros(nb)
+        self._inboard_index = np.where(self.parent >= 0, self.parent, np.arange(nb) + nb)   # of relative_angles
         self.is_chain = bool(np.all(self.parent == np.arange(-1, nb - 1))) and not self._driven \
             and not len(self.free_bodies) and not self.has_flexible
 
@@ -483,10 +484,10 @@ class PlanarModel:
         """
         if self._constant_laws:
             return self._law_values
-        names = self.joint_names
-        return (signal_values(self._reference, t, names, "reference angle"),
-                signal_values(self._reference_rate, t, names, "reference rate"),
-                signal_values(self._torque, t, names, "torque"))
+        index, functions, labels, parts = self._varying_laws
+        values = np.array(self._law_values)                 # (3, n_bodies): the constant laws' values
+        values.flat[index] = signal_values(functions, t, labels, parts)
+        return values[0], values[1], values[2]
 
     def loads(self, t: float) -> np.ndarray:
         """External loads ``(fx, fy, moment)`` of every :class:`Load` at time ``t``
@@ -582,11 +583,9 @@ class PlanarModel:
                 raise ModelError("relative_angles of a model with flexible bodies needs q, qdot")
             th, om = self.parent_end_angles(q, qdot, theta, omega)
             return theta - th, omega - om
-        p = self.parent
-        has = p >= 0
-        dtheta = theta - np.where(has, theta[np.maximum(p, 0)], self.ground_angle)
-        domega = omega - np.where(has, omega[np.maximum(p, 0)], 0.0)
-        return dtheta, domega
+        index = self._inboard_index                  # the parent's angle and rate, a root's ground angle and 0
+        return (theta - np.concatenate((theta, self.ground_angle))[index],
+                omega - np.concatenate((omega, self._zeros))[index])
 
     def points(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0) -> dict[str, np.ndarray]:
         """Positions and velocities of inboard ends and centres of mass in global axes.

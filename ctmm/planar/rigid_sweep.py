@@ -139,7 +139,7 @@ class RigidTreeSweep:
             A singular articulated inertia (non-finite accelerations), naming the first such joint.
         """
         arrays = [np.asarray(x) for x in (K, b, E, kappa, tau, alpha_driven)]
-        if any(x.dtype.kind == "c" for x in arrays):
+        if "c" in [x.dtype.kind for x in arrays]:
             with np.errstate(all="ignore"):
                 A, F, alpha, pivots = self._numpy(*arrays)
         else:
@@ -228,7 +228,7 @@ class RigidTreeSweep:
         if sizes != [9 * nb, 3 * nb, 6 * nb, nb, nb, nb]:
             raise ModelError(f"RigidTreeSweep: the arguments K, b, E, kappa, tau, alpha_driven have {sizes} values; "
                              f"{nb} bodies need 9, 3, 6, 1, 1 and 1 per body")
-        z = np.concatenate([x.reshape(-1) for x in arrays]).astype(float, copy=False)
+        z = np.concatenate(arrays, axis=None, dtype=float)      # each flattened in row-major order
         w = np.empty(8 * nb)
         memory.set_arg(0, memoryview(z))
         memory.set_res(0, memoryview(w))

@@ -70,4 +70,4 @@ def _finite_values(functions: Sequence[Callable[[float], float]], t: float) -> n
         values = np.array([f(t) for f in functions], dtype=float)
     except Exception:  # noqa: BLE001 - user code; found and named by the caller
         return None
-    return values if values.shape == (len(functions),) and np.all(np.isfinite(values)) else None
+    return values if values.shape == (len(functions),) and np.isfinite(values).all() else None

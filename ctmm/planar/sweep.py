@@ -62,25 +62,33 @@ def body_terms(model: PlanarModel, theta: np.ndarray, omega: np.ndarray, t: floa
     """Vectorised body data: ``K`` (nb, 9), ``b`` (nb, 3), end data (nb, 6) and levers.
 
     End data row ``j`` = ``(kx, ky, lx, ly, cx, cy)`` of the parent end carrying body ``j``
-    (kinematic third column of ``X``, lever column of ``X^T``, velocity term ``c``).
+    (kinematic third column of ``X``, lever column of ``X^T``, velocity term ``c``).  Plane vectors are
+    complex numbers ``x + i y`` here (one numpy operation per pair on these small arrays): the rotation
+    ``R(theta) r`` is ``e^{i theta} r``, ``k x r`` is ``i r``; the end data is the float view of three
+    complex columns ``(i r, i r, -omega_p^2 r)``.
     """
-    c, s = np.cos(theta), np.sin(theta)
-    m, inertia = model.mass, model.inertia
-    rcx = c * model.com[:, 0] - s * model.com[:, 1]
-    rcy = s * model.com[:, 0] + c * model.com[:, 1]
     nb = model.n_bodies
+    turn = np.empty(nb, dtype=complex)                  # e^{i theta}: cos and sin as numpy computes them
+    np.cos(theta, out=turn.real)
+    np.sin(theta, out=turn.imag)
+    c, s = turn.real, turn.imag
+    m, inertia = model.mass, model.inertia
+    rc = turn * np.ascontiguousarray(model.com).view(complex)[:, 0]        # centre of mass from the inboard end
+    rcx, rcy = rc.real, rc.imag
+    mrc = m * rc
     K = np.zeros((nb, 9))
     K[:, 0] = m
     K[:, 4] = m
-    K[:, 2] = K[:, 6] = -m * rcy
-    K[:, 5] = K[:, 7] = m * rcx
+    K[:, 2] = K[:, 6] = -mrc.imag
+    K[:, 5] = K[:, 7] = mrc.real
     K[:, 8] = inertia + m * (rcx * rcx + rcy * rcy)
     gx, gy = model.gravity
     w2 = omega * omega
     b = np.empty((nb, 3))
-    b[:, 0] = -m * (w2 * rcx + gx)
-    b[:, 1] = -m * (w2 * rcy + gy)
-    b[:, 2] = -m * (rcx * gy - rcy * gx)
+    velocity_gravity = -m * (w2 * rc + complex(gx, gy))
+    b[:, 0] = velocity_gravity.real
+    b[:, 1] = velocity_gravity.imag
+    b[:, 2] = m * (rc * complex(gx, -gy)).imag           # -m (rcx gy - rcy gx)
     if len(model.load_body):
         loads = model.loads(t)
         lb = model.load_body
@@ -91,12 +99,11 @@ def body_terms(model: PlanarModel, theta: np.ndarray, omega: np.ndarray, t: floa
         np.add.at(b[:, 1], lb, -loads[:, 1])
         np.add.at(b[:, 2], lb, -(rex * loads[:, 1] - rey * loads[:, 0] + loads[:, 2]))
     p = np.maximum(model.parent, 0)
-    ex, ey = model.end_vector[:, 0], model.end_vector[:, 1]
-    rx = c[p] * ex - s[p] * ey
-    ry = s[p] * ex + c[p] * ey
-    wp2 = w2[p]
-    E = np.column_stack([-ry, rx, -ry, rx, -wp2 * rx, -wp2 * ry])
-    return K, b, E, (rcx, rcy, rx, ry)
+    r = turn[p] * np.ascontiguousarray(model.end_vector).view(complex)[:, 0]   # parent end from its inboard end
+    ends = np.empty((nb, 3), dtype=complex)
+    ends[:, 0] = ends[:, 1] = 1j * r
+    ends[:, 2] = -w2[p] * r
+    return K, b, ends.view(float), (rcx, rcy, r.real, r.imag)
 
 
 def hinge_torques(model: PlanarModel, theta: np.ndarray, omega: np.ndarray, t: float
