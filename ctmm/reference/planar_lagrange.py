@@ -28,6 +28,8 @@ import scipy.linalg
 import scipy.sparse
 import scipy.sparse.linalg
 
+from .cholesky import cholesky_solve
+
 REVOLUTE, DRIVEN, FREE, BUSHING = 0, 1, 2, 3   # joint kinds, as stored in model.joint_kind
 
 
@@ -208,6 +210,9 @@ class PlanarLagrange:
         self._P, self._S = P[np.ix_(order, order)], S[np.ix_(order, order)]
         self._lever_to = lever_to[np.ix_(order, order)]
         self._fast_order = order
+        self._inverse_order = np.argsort(order)
+        # sum_k m_k v_ik (body frame of i): constant, the gravity term of _fast_terms
+        self._mass_levers = np.einsum("k,ikc->ic", mass[order], self._lever_to)
 
     def _fast_terms(self, q, qdot, t):
         m = self.model
@@ -222,9 +227,7 @@ class PlanarLagrange:
         bias = -(cd * self._S + sd * self._P) @ (w * w)
         # gravity: Q_i = sum_k m_k (k x R_i v_ik) . g
         g = np.asarray(m.gravity)
-        mass = np.asarray(m.mass)[self._fast_order]
-        lv = self._lever_to
-        mv = np.einsum("k,ikc->ic", mass, lv)     # sum_k m_k v_ik (body frame of i)
+        mv = self._mass_levers                     # sum_k m_k v_ik (body frame of i)
         c, s = np.cos(th), np.sin(th)
         rx = c * mv[:, 0] - s * mv[:, 1]
         ry = s * mv[:, 0] + c * mv[:, 1]
@@ -246,12 +249,12 @@ class PlanarLagrange:
             M, rhs = self._fast_terms(q, qdot, t)
             theta = q[: self.nb]
             omega = qdot[: self.nb]
-            inv = np.argsort(self._fast_order)
+            inv = self._inverse_order
             rhs = rhs + self._hinge_forces(theta[inv], omega[inv], t)
         else:
             kin = self.kinematics(q, qdot, t)
             M, rhs = self._generalised(q, qdot, t, kin)
-        return scipy.linalg.cho_solve(scipy.linalg.cho_factor(M), rhs)
+        return cholesky_solve(M, rhs)
 
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         """ODE right-hand side for ``y = [q, qdot]``."""

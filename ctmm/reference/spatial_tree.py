@@ -58,6 +58,7 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import ModelError, SimulationError
+from .cholesky import cholesky_solve
 from .spatial_kinematics import (JOINT_SIZES, Kinematics, cross, exp_quaternion, kinematics,
                                  point_jacobian, quaternion_matrix, quaternion_product,
                                  rotation_vector)
@@ -307,7 +308,7 @@ def forward_dynamics(tree: SpatialTree, q: np.ndarray, v: np.ndarray, tau=None,
     rhs = -bias_forces(tree, q, v, t, kin)
     if tau is not None:
         rhs = rhs + np.asarray(tau, dtype=float)
-    return scipy.linalg.cho_solve(scipy.linalg.cho_factor(mass_matrix(tree, q, kin)), rhs)
+    return cholesky_solve(mass_matrix(tree, q, kin), rhs)
 
 
 def inverse_dynamics(tree: SpatialTree, q: np.ndarray, v: np.ndarray, vdot: np.ndarray,
