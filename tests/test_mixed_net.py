@@ -35,16 +35,22 @@ def net_subsystem() -> GlobalSubsystem:
     dofs = {name: list(d) for name, (_, d) in nodes.items()}
     ends = [(a if isinstance(a, str) else f"p{a}", f"p{b}", k) for a, b, k in SPRINGS]
 
+    # the springs as arrays, one row per spring: ends' rest positions and DOFs, stiffness, rest length
+    start = np.array([position[a] for a, _, _ in ends])
+    end = np.array([position[b] for _, b, _ in ends])
+    start_dofs, end_dofs = np.array([dofs[a] for a, _, _ in ends]), np.array([dofs[b] for _, b, _ in ends])
+    stiffness = np.array([k for _, _, k in ends])
+    rest = np.linalg.norm(end - start, axis=1)
+
     def springs(u, u_dot, t):
+        d = end + u[end_dofs] - start - u[start_dofs]                   # (springs, 2), complex-safe
+        length = np.sqrt((d * d).sum(1))
+        e = d / length[:, None]
+        stretch_rate = (e * (u_dot[end_dofs] - u_dot[start_dofs])).sum(1)
+        force = -(stiffness * (length - rest) + DAMPING * stretch_rate)[:, None] * e
         f = np.zeros_like(u)
-        for a, b, k in ends:
-            d = position[b] + u[dofs[b]] - position[a] - u[dofs[a]]
-            length = np.sqrt(d @ d)
-            e = d / length
-            rest = np.linalg.norm(position[b] - position[a])
-            force = -(k * (length - rest) + DAMPING * (e @ (u_dot[dofs[b]] - u_dot[dofs[a]]))) * e
-            f[dofs[b]] += force
-            f[dofs[a]] -= force
+        np.add.at(f, end_dofs, force)
+        np.subtract.at(f, start_dofs, force)
         return f
 
     def potential(u):

@@ -346,9 +346,9 @@ class SpatialFEChain:
             W[:, d[3 + k]] = [w[2, 1], w[0, 2], w[1, 0]]
         return rho, E, W, Smap
 
-    def kinematics(self, q) -> dict:
+    def kinematics(self, q, points: bool = True) -> dict:
         """Jacobians at ``q`` (complex allowed): links ``(R, r_com, Jv_com, Jw)``, the frame ``(R_F, o_F,
-        Jv_F, Jw_F)``, mass points ``(r_p, J_p)``."""
+        Jv_F, Jw_F)``, mass points ``(r_p, J_p)`` (left out when not ``points``)."""
         dtype = np.result_type(q, float)
         n = self.n
         u = q[self.n_joints:]
@@ -384,6 +384,8 @@ class SpatialFEChain:
                 links.append((R, o + arm, Jv - _hat(arm) @ Jw, Jw))
             else:
                 frame = (R, o, Jv, Jw)
+        if not points:
+            return {"links": links, "frame": frame, "Su": Su}
         R_F, o_F, Jv_F, Jw_F = frame
         rho = self.X + np.einsum("pij,j->pi", self.S, u)
         arms = rho @ R_F.T
@@ -395,7 +397,7 @@ class SpatialFEChain:
     def node_point(self, q, node: str) -> tuple[np.ndarray, np.ndarray]:
         """World position [m] of a frame node and its Jacobian ``d r / d q`` (3 x n)."""
         q = np.asarray(q, float)
-        R_F, o_F, Jv_F, Jw_F = self.kinematics(q)["frame"]
+        R_F, o_F, Jv_F, Jw_F = self.kinematics(q, points=False)["frame"]
         rho, _, _, Smap = self._node_frame(q[self.n_joints:], node)
         Su = np.zeros((self.n_u, self.n))
         Su[:, self.n_joints:] = np.eye(self.n_u)
@@ -405,7 +407,7 @@ class SpatialFEChain:
         """``(r, J, J' q')`` of a frame node: world position [m], ``J = d r / d q`` (3 x n) and the velocity part
         of its acceleration ``a = J q'' + J' q'`` [m/s^2] (``J'`` by a complex step of ``J`` along ``q'``)."""
         def point(qc):
-            R_F, o_F, Jv_F, Jw_F = self.kinematics(qc)["frame"]
+            R_F, o_F, Jv_F, Jw_F = self.kinematics(qc, points=False)["frame"]
             rho, _, _, Smap = self._node_frame(qc[self.n_joints:], node)
             Su = np.zeros((self.n_u, self.n))
             Su[:, self.n_joints:] = np.eye(self.n_u)
@@ -419,7 +421,7 @@ class SpatialFEChain:
         ``a = R_F E(r) axis``, ``J = d a / d q = -[a]x J_omega`` (3 x n, ``J_omega`` the node frame's angular velocity
         Jacobian) and ``J' q'`` (complex step of ``J`` along ``q'``)."""
         def frame_axis(qc):
-            R_F, _, _, Jw_F = self.kinematics(qc)["frame"]
+            R_F, _, _, Jw_F = self.kinematics(qc, points=False)["frame"]
             _, E, W, _ = self._node_frame(qc[self.n_joints:], node)
             Su = np.zeros((self.n_u, self.n))
             Su[:, self.n_joints:] = np.eye(self.n_u)
@@ -466,7 +468,7 @@ class SpatialFEChain:
         for k in range(self.frame_joints()):
             e = np.zeros(n)
             e[k] = 1.0
-            probes.append(self._rotary_jacobians(self.kinematics(q + 1j * _H * e)))
+            probes.append(self._rotary_jacobians(self.kinematics(q + 1j * _H * e, points=False)))
         for r, ((I, J), (_, Jc)) in enumerate(zip(rot, rot_d)):
             Jd = Jc.imag / _H
             Omega = J @ qd
