@@ -63,6 +63,9 @@ def rigid_body_terms(ops: Ops, *, mass: float, inertia: np.ndarray, center_of_ma
         ``M = [[m I, -m [r_c]x], [m [r_c]x, I_P]]``, ``h`` the velocity, gravity and load terms,
         ``Kin[e] = [[I, -[r_e]x], [0, I]]``, ``c[e] = [omega x (omega x r_e) ; 0]``, ``RF[e] = Kin[e]^T``.
     """
+    if ops.name == "numpy":
+        return _numpy_rigid_body_terms(mass, inertia, center_of_mass, points, rotation, offset, omega, gravity, loads)
+
     def located(p: np.ndarray) -> Any:
         r = ops.matmul(rotation, constant(ops, p))
         return r if offset is None else r + offset
@@ -93,6 +96,60 @@ def rigid_body_terms(ops: Ops, *, mass: float, inertia: np.ndarray, center_of_ma
         Kin[name] = K
         RF[name] = ops.transpose(K)
     return BodyTerms(M=M, h=ops.block([[h_lin], [h_ang]]), Kin=Kin, c=c, RF=RF)
+
+
+def _numpy_rigid_body_terms(mass: float, inertia: np.ndarray, center_of_mass: np.ndarray,
+                            points: Mapping[str, np.ndarray], rotation: np.ndarray, offset: Any, omega: Any,
+                            gravity: np.ndarray, loads: Sequence[tuple[np.ndarray, Any]]) -> BodyTerms:
+    """:func:`rigid_body_terms` on numpy batches ``(B, r, c)``: the same operations on the same operands, the
+    blocks filled into one allocation each in place of the block assembly (the batch of a result is that of
+    its operands, as there)."""
+    def located(p: np.ndarray) -> np.ndarray:
+        r = np.matmul(rotation, np.asarray(p, dtype=float).reshape(3, 1))
+        return r if offset is None else r + offset
+
+    r_c = located(center_of_mass)
+    inertia_world = np.matmul(np.matmul(rotation, np.asarray(inertia, dtype=float)), rotation.swapaxes(-1, -2))
+    rc_x = skew(NUMPY, r_c)
+    lower = inertia_world - np.matmul(rc_x, rc_x) * mass
+    M = np.empty(np.broadcast_shapes(rc_x.shape[:-2], lower.shape[:-2]) + (6, 6), dtype=lower.dtype)
+    M[..., :3, :3] = _EYE3 * mass
+    M[..., :3, 3:] = rc_x * -mass
+    M[..., 3:, :3] = rc_x * mass
+    M[..., 3:, 3:] = lower
+    g = np.asarray(gravity, dtype=float).reshape(1, 3, 1)
+    h_lin = g * -mass
+    h_ang = cross(NUMPY, r_c, g) * -mass
+    if omega is not None:
+        centripetal = cross(NUMPY, omega, cross(NUMPY, omega, r_c))
+        h_lin = h_lin + centripetal * mass
+        h_ang = h_ang + cross(NUMPY, omega, np.matmul(inertia_world, omega)) + cross(NUMPY, r_c, centripetal) * mass
+    for point, wrench in loads:
+        f = wrench[..., 0:3, 0:1]
+        h_lin = h_lin - f
+        h_ang = h_ang - wrench[..., 3:6, 0:1] - cross(NUMPY, located(point), f)
+    h = np.empty(np.broadcast_shapes(h_lin.shape[:-2], h_ang.shape[:-2]) + (6, 1),
+                 dtype=np.result_type(h_lin, h_ang))
+    h[..., :3, :] = h_lin
+    h[..., 3:, :] = h_ang
+    Kin, c, RF = {}, {}, {}
+    for name, p in points.items():
+        r_e = located(p)
+        K = np.zeros(r_e.shape[:-2] + (6, 6), dtype=r_e.dtype)
+        K[..., _DIAGONAL6, _DIAGONAL6] = 1.0
+        K[..., :3, 3:] = skew(NUMPY, r_e) * -1.0
+        if omega is None:
+            c[name] = np.zeros((1, 6, 1))
+        else:
+            accel = cross(NUMPY, omega, cross(NUMPY, omega, r_e))
+            c[name] = np.concatenate([accel, np.zeros(accel.shape[:-2] + (3, 1), dtype=accel.dtype)], axis=-2)
+        Kin[name] = K
+        RF[name] = K.swapaxes(-1, -2)
+    return BodyTerms(M=M, h=h, Kin=Kin, c=c, RF=RF)
+
+
+_EYE3 = np.eye(3)
+_DIAGONAL6 = np.arange(6)
 
 
 @dataclass(frozen=True)
