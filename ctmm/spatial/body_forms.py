@@ -14,7 +14,7 @@ translation has carried to ``P``), so that ``A_child = A_parent(P) + S a_rel + c
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import partial
+from functools import lru_cache, partial
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -186,6 +186,23 @@ class JointMotion:
     prescribed: Any = None
 
 
+def _axis_columns(ops: Ops, axis: Any, start: int) -> tuple[Any, Any]:
+    """``(a, S)``: a joint axis as an ops column and its unit twist ``S`` (6 x 1) with the axis in rows
+    ``start:start + 3`` (numpy constants read-only, shared by the calls with that axis)."""
+    return _axis_constants(ops, tuple(np.asarray(axis, dtype=float).reshape(3).tolist()), start)
+
+
+@lru_cache(maxsize=256)
+def _axis_constants(ops: Ops, axis: tuple[float, float, float], start: int) -> tuple[Any, Any]:
+    twist = np.zeros(6)
+    twist[start:start + 3] = axis
+    out = (constant(ops, axis), constant(ops, twist))
+    if ops.name == "numpy":
+        for value in out:
+            value.flags.writeable = False
+    return out
+
+
 def _law(ops: Ops, joint, q: list, v: list, u: Any) -> tuple[Any, Any, Any]:
     """``tau = u - k (q - q_ref) - c v`` of a 1- or 2-DOF joint, with its tangents."""
     k, c, ref = joint.stiffness, joint.damping, joint.reference
@@ -215,13 +232,12 @@ def joint_motion(ops: Ops, joint, q: list, v: list, u: Any = None, acceleration:
     if kind == "weld":
         return JointMotion(ops.eye(3), None, ops.zeros(6, 0), None, None, None)
     if kind == "revolute":
-        a = constant(ops, joint.axis)
+        a, S = _axis_columns(ops, joint.axis, 3)
         motion = dict(rotation=axis_rotation(ops, joint.axis, q[0]), translation=None,
-                      S=constant(ops, np.r_[np.zeros(3), joint.axis]), bias=None, linear=None, angular=a * v[0])
+                      S=S, bias=None, linear=None, angular=a * v[0])
     elif kind == "prismatic":
-        a = constant(ops, joint.axis)
-        motion = dict(rotation=ops.eye(3), translation=a * q[0], S=constant(ops, np.r_[joint.axis, np.zeros(3)]),
-                      bias=None, linear=a * v[0], angular=None)
+        a, S = _axis_columns(ops, joint.axis, 0)
+        motion = dict(rotation=ops.eye(3), translation=a * q[0], S=S, bias=None, linear=a * v[0], angular=None)
     elif kind == "universal":
         first = axis_rotation(ops, joint.axis1, q[0])
         a1 = constant(ops, joint.axis1)
