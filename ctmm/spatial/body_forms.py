@@ -491,14 +491,12 @@ class SpatialScene:
             for load in self._loads[j]:
                 wrench = _signal_column(ops, load.force + load.moment, t)
                 if load.axes == "body":
-                    wrench = ops.block([[ops.matmul(R_c, ops.sub(wrench, slice(0, 3), slice(0, 1)))],
-                                        [ops.matmul(R_c, ops.sub(wrench, slice(3, 6), slice(0, 1)))]])
+                    wrench = _turned_wrench(ops, R_c, wrench)
                 loads.append((body.points[load.point], wrench))
             for entry in (wrenches or {}).get(j, ()):       # (point, [f ; m] world) or (point, [f ; m], "body")
                 wrench = entry[1]
                 if len(entry) > 2 and entry[2] == "body":
-                    wrench = ops.block([[ops.matmul(R_c, ops.sub(wrench, slice(0, 3), slice(0, 1)))],
-                                        [ops.matmul(R_c, ops.sub(wrench, slice(3, 6), slice(0, 1)))]])
+                    wrench = _turned_wrench(ops, R_c, wrench)
                 loads.append((entry[0], wrench))
             modal = model.modal[j]
             if modal is not None:
@@ -541,6 +539,15 @@ class SpatialScene:
         ``wrenches`` as in :meth:`terms`)."""
         q, v = self.model.check_state(q, v)
         return self.sweep(NUMPY, q, v, t, self.numpy_inputs(inputs, t, q.shape[0]), wrenches)
+
+
+def _turned_wrench(ops: Ops, rotation: Any, wrench: Any) -> Any:
+    """``[R f ; R m]`` of a wrench ``[f ; m]`` (6, 1) given in the axes ``rotation`` turns to world axes."""
+    if ops.name == "numpy":                     # both halves in one product (the same entries)
+        pair = np.matmul(rotation[..., None, :, :], wrench.reshape(wrench.shape[:-2] + (2, 3, 1)))
+        return pair.reshape(pair.shape[:-3] + (6, 1))
+    return ops.block([[ops.matmul(rotation, ops.sub(wrench, slice(0, 3), slice(0, 1)))],
+                      [ops.matmul(rotation, ops.sub(wrench, slice(3, 6), slice(0, 1)))]])
 
 
 def _signal_column(ops: Ops, signals: Sequence[Any], t: Any) -> Any:

@@ -15,7 +15,7 @@ from .beam_terms import beam_energy
 from .body_forms import SpatialScene
 from .model import SpatialModel
 
-__all__ = ["SpatialSolution", "solve", "accelerations", "reactions", "state_rates", "scene_of", "energy"]
+__all__ = ["SpatialSolution", "solve", "scene_solution", "accelerations", "reactions", "state_rates", "scene_of", "energy"]
 
 
 def _batched(column: Any, batch: int) -> np.ndarray:
@@ -84,7 +84,15 @@ def solve(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[s
     t = validation.finite("t", t)
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{input name: number or f(t)}}, got {inputs!r:.80}")
-    wrenches = _checked_wrenches(model, wrenches)
+    return scene_solution(scene, q, v, t, inputs, _checked_wrenches(model, wrenches))
+
+
+def scene_solution(scene: SpatialScene, q: Any, v: Any, t: float, inputs: Mapping[str, Any] | None = None,
+                   wrenches: Mapping[int, Any] | None = None) -> SpatialSolution:
+    """:func:`solve` on a model's :class:`SpatialScene` with a finite time ``t`` [s], an ``inputs`` mapping (or
+    ``None``) and ``wrenches`` of the checked form (callers that built them, e.g. the ports' actuators, in inner
+    loops); the state is checked and failures are reported as there."""
+    model = scene.model
     try:
         solution = scene.solve(q, v, t, inputs, wrenches)
     except SingularPivotError as exc:
