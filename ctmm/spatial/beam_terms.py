@@ -139,7 +139,6 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
     w = ops.zeros(3, 1) if omega is None else ops.matmul(Rt, omega)
     g = ops.matmul(Rt, constant(ops, gravity))
     qv = constant(ops, [float(f(t)) for f in beam.distributed_load])
-    eye3 = ops.eye(3)
     e1 = constant(ops, _E[:, 0])
     if ops.name == "numpy":                        # the same terms on stacked integrals (_numpy_body)
         M_b, h_b = _numpy_body(data, data.remembered("numpy_terms", _numpy_constants), w, g, qv, eta, eta_dot, t)
@@ -176,8 +175,7 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
             Phi_u = Phi_u - ops.matmul(e1, ops.transpose(G1_eta))
             rate_term = e1 * (ops.matmul(ops.transpose(G1_rate), eta_dot) * -1.0)
         if name in (points or {}):
-            K_b = ops.block([[eye3, skew(ops, rho) * -1.0, Phi_u],
-                             [ops.zeros(3, 3), eye3, ThetaLam]])
+            K_b = _point_map(ops, rho, Phi_u, ThetaLam)
             tx, ty, tz = (entry(ops, theta_dot, i) for i in range(3))
             spin = cross(ops, constant(ops, _E[:, 2]) * tz, second) * ty + cross(
                 ops, constant(ops, _E[:, 2]) * tz + second * ty, first) * tx
@@ -186,8 +184,12 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
                              [cross(ops, w, relative) + spin]])
             RF_b = ops.transpose(K_b)                  # virtual work (with the option: -e1 eta^T G1 in Phi_u)
             if data.stiffening and data.second_order is None:
-                RF_b = RF_b - ops.block([[ops.zeros(6, 6)],
-                                         [ops.block([[ops.matmul(constant(ops, G1_e), eta), ops.zeros(n, 5)]])]])
+                G1_eta = ops.matmul(constant(ops, G1_e), eta)
+                if ops.name == "numpy" and G1_eta.shape[:-2] == RF_b.shape[:-2] and G1_eta.dtype == RF_b.dtype:
+                    RF_b = RF_b.copy()                 # the same entries: only the axial column changes
+                    RF_b[..., 6:, 0:1] -= G1_eta
+                else:
+                    RF_b = RF_b - ops.block([[ops.zeros(6, 6)], [ops.block([[G1_eta, ops.zeros(n, 5)]])]])
             Kin[name] = ops.matmul(ops.matmul(T6, K_b), Tt)
             c[name] = ops.matmul(T6, c_b)
             RF[name] = ops.matmul(ops.matmul(T, RF_b), ops.transpose(T6))
@@ -202,6 +204,24 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
     if offset is not None:
         terms = _about_inboard(ops, terms, offset, omega, n)
     return terms, out
+
+
+def _point_map(ops: Ops, rho: Any, Phi_u: Any, ThetaLam: Any) -> Any:
+    """``K_b = [[I, -[rho]x, Phi_u], [0, I, Theta Lambda]]`` (6 x (6 + n)) of a beam point, frame axes."""
+    if ops.name == "numpy":                        # the same entries filled into one allocation
+        n = ThetaLam.shape[-1]
+        K = np.zeros(np.broadcast_shapes(rho.shape[:-2], Phi_u.shape[:-2], ThetaLam.shape[:-2]) + (6, 6 + n),
+                     dtype=np.result_type(rho, Phi_u, ThetaLam))
+        K[..., _DIAGONAL6, _DIAGONAL6] = 1.0
+        K[..., :3, 3:6] = skew(ops, rho) * -1.0
+        K[..., :3, 6:] = Phi_u
+        K[..., 3:6, 6:] = ThetaLam
+        return K
+    eye3 = ops.eye(3)
+    return ops.block([[eye3, skew(ops, rho) * -1.0, Phi_u], [ops.zeros(3, 3), eye3, ThetaLam]])
+
+
+_DIAGONAL6 = np.arange(6)
 
 
 def _ops_body(ops: Ops, data: Any, w: Any, g: Any, qv: Any, eta: Any, eta_dot: Any,
