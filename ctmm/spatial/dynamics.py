@@ -160,13 +160,15 @@ def reactions(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mappi
 def state_rates(model: SpatialModel, x: np.ndarray, t: float, inputs: Mapping[str, Any] | None = None
                 ) -> np.ndarray:
     """``x_dot = [G(q) v ; v_dot]`` of the state ``x = [q ; v]`` (1-D or ``(B, nq + nv)``)."""
-    scene_of(model)
+    scene = scene_of(model)
     size = model.n_positions + model.n_velocities
     if isinstance(x, (str, bytes, bool, Mapping)) or x is None or np.shape(x)[-1:] != (size,):
         raise ModelError(f"x must be the state [q ; v]: {size} numbers (or (B, {size})), got {x!r:.80}")
     x = validation.finite_array("x (the state [q ; v])", x)
     q, v = x[..., :model.n_positions], x[..., model.n_positions:]
-    rates = solve(model, q, v, t, inputs).velocity_rates
+    if inputs is not None and not isinstance(inputs, Mapping):
+        raise ModelError(f"inputs must be a mapping {{input name: number or f(t)}}, got {inputs!r:.80}")
+    rates = scene_solution(scene, q, v, validation.finite("t", t), inputs).velocity_rates    # one scene per call
     out = np.concatenate([model.position_rates(q if q.ndim == 2 else q[None], v if v.ndim == 2 else v[None]),
                           rates], axis=-1)
     return out[0] if x.ndim == 1 else out
