@@ -85,6 +85,13 @@ def _scalar_sum(ops: Ops, items: Sequence[Any]) -> Any:
 
 def _rotation_jacobian(ops: Ops, theta: Any) -> tuple[Any, Any, Any]:
     """``(Theta, Rz e2, Rz Ry e1)`` of the point rotation ``Rz Ry Rx`` at ``theta`` (3 x 1)."""
+    if ops.name == "numpy":                        # the same entries filled into one array
+        cy, sy, cz, sz = np.cos(theta[..., 1, 0]), np.sin(theta[..., 1, 0]), np.cos(theta[..., 2, 0]), np.sin(
+            theta[..., 2, 0])
+        Theta = np.zeros(theta.shape[:-2] + (3, 3), dtype=cy.dtype)
+        Theta[..., 0, 0], Theta[..., 1, 0], Theta[..., 2, 0] = cz * cy, sz * cy, sy * -1.0
+        Theta[..., 0, 1], Theta[..., 1, 1], Theta[..., 2, 2] = sz * -1.0, cz, 1.0
+        return Theta, Theta[..., :, 1:2], Theta[..., :, 0:1]
     ty, tz = entry(ops, theta, 1), entry(ops, theta, 2)
     cy, sy, cz, sz = ops.cos(ty), ops.sin(ty), ops.cos(tz), ops.sin(tz)
     second = ops.block([[sz * -1.0], [cz], [0.0 * cz]])
@@ -132,7 +139,6 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
     w = ops.zeros(3, 1) if omega is None else ops.matmul(Rt, omega)
     g = ops.matmul(Rt, constant(ops, gravity))
     qv = constant(ops, [float(f(t)) for f in beam.distributed_load])
-    eye3 = ops.eye(3)
     e1 = constant(ops, _E[:, 0])
     if ops.name == "numpy":                        # the same terms on stacked integrals (_numpy_body)
         M_b, h_b = _numpy_body(data, data.remembered("numpy_terms", _numpy_constants), w, g, qv, eta, eta_dot, t)
@@ -169,8 +175,7 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
             Phi_u = Phi_u - ops.matmul(e1, ops.transpose(G1_eta))
             rate_term = e1 * (ops.matmul(ops.transpose(G1_rate), eta_dot) * -1.0)
         if name in (points or {}):
-            K_b = ops.block([[eye3, skew(ops, rho) * -1.0, Phi_u],
-                             [ops.zeros(3, 3), eye3, ThetaLam]])
+            K_b = _point_map(ops, rho, Phi_u, ThetaLam)
             tx, ty, tz = (entry(ops, theta_dot, i) for i in range(3))
             spin = cross(ops, constant(ops, _E[:, 2]) * tz, second) * ty + cross(
                 ops, constant(ops, _E[:, 2]) * tz + second * ty, first) * tx
@@ -179,8 +184,12 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
                              [cross(ops, w, relative) + spin]])
             RF_b = ops.transpose(K_b)                  # virtual work (with the option: -e1 eta^T G1 in Phi_u)
             if data.stiffening and data.second_order is None:
-                RF_b = RF_b - ops.block([[ops.zeros(6, 6)],
-                                         [ops.block([[ops.matmul(constant(ops, G1_e), eta), ops.zeros(n, 5)]])]])
+                G1_eta = ops.matmul(constant(ops, G1_e), eta)
+                if ops.name == "numpy" and G1_eta.shape[:-2] == RF_b.shape[:-2] and G1_eta.dtype == RF_b.dtype:
+                    RF_b = RF_b.copy()                 # the same entries: only the axial column changes
+                    RF_b[..., 6:, 0:1] -= G1_eta
+                else:
+                    RF_b = RF_b - ops.block([[ops.zeros(6, 6)], [ops.block([[G1_eta, ops.zeros(n, 5)]])]])
             Kin[name] = ops.matmul(ops.matmul(T6, K_b), Tt)
             c[name] = ops.matmul(T6, c_b)
             RF[name] = ops.matmul(ops.matmul(T, RF_b), ops.transpose(T6))
@@ -195,6 +204,24 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
     if offset is not None:
         terms = _about_inboard(ops, terms, offset, omega, n)
     return terms, out
+
+
+def _point_map(ops: Ops, rho: Any, Phi_u: Any, ThetaLam: Any) -> Any:
+    """``K_b = [[I, -[rho]x, Phi_u], [0, I, Theta Lambda]]`` (6 x (6 + n)) of a beam point, frame axes."""
+    if ops.name == "numpy":                        # the same entries filled into one allocation
+        n = ThetaLam.shape[-1]
+        K = np.zeros(np.broadcast_shapes(rho.shape[:-2], Phi_u.shape[:-2], ThetaLam.shape[:-2]) + (6, 6 + n),
+                     dtype=np.result_type(rho, Phi_u, ThetaLam))
+        K[..., _DIAGONAL6, _DIAGONAL6] = 1.0
+        K[..., :3, 3:6] = skew(ops, rho) * -1.0
+        K[..., :3, 6:] = Phi_u
+        K[..., 3:6, 6:] = ThetaLam
+        return K
+    eye3 = ops.eye(3)
+    return ops.block([[eye3, skew(ops, rho) * -1.0, Phi_u], [ops.zeros(3, 3), eye3, ThetaLam]])
+
+
+_DIAGONAL6 = np.arange(6)
 
 
 def _ops_body(ops: Ops, data: Any, w: Any, g: Any, qv: Any, eta: Any, eta_dot: Any,
@@ -383,6 +410,8 @@ def _load_rows(ops: Ops, data: Any, Rt: Any, eta: Any, loads: Sequence[tuple[np.
     """The rows ``(h_lin, h_ang, h_mod)`` (frame axes, about the root) of applied wrenches ``[f ; m]`` (world
     axes) at beam points: ``-f``, ``-(rho_l x f + m)``, ``-(Phi_l^T f + (Theta Lambda_l)^T m)`` (+ the
     geometric stiffness of ``f_1``)."""
+    if ops.name == "numpy" and data.second_order is None:
+        return _numpy_load_rows(data, Rt, eta, loads)
     h_lin, h_ang, h_mod = None, None, None
     for point, wrench in loads:
         Phi_l, Lam_l, G1_l = data.station(float(point[0]))
@@ -403,6 +432,47 @@ def _load_rows(ops: Ops, data: Any, Rt: Any, eta: Any, loads: Sequence[tuple[np.
         h_ang = ang if h_ang is None else h_ang + ang
         h_mod = mod if h_mod is None else h_mod + mod
     return h_lin, h_ang, h_mod
+
+
+def _load_stations(data: Any, abscissae: tuple[float, ...]) -> dict[str, np.ndarray]:
+    """The stations of the load points ``abscissae`` stacked for :func:`_numpy_load_rows` (read-only)."""
+    stations = [data.station(x) for x in abscissae]
+    out = {"rho0": np.array([[[x], [0.0], [0.0]] for x in abscissae]),
+           "Phi": np.stack([Phi for Phi, _, _ in stations]), "PhiT": np.stack([Phi.T for Phi, _, _ in stations]),
+           "Lam": np.stack([Lam for _, Lam, _ in stations]), "G1": np.stack([G1 for _, _, G1 in stations])}
+    for value in out.values():
+        value.flags.writeable = False
+    return out
+
+
+def _stacked_cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` of numpy columns ``(..., 3, 1)`` with any leading axes (:func:`~ctmm.spatial.frames.cross` reads
+    one batch axis)."""
+    a0, a1, a2 = a[..., 0, :], a[..., 1, :], a[..., 2, :]
+    b0, b1, b2 = b[..., 0, :], b[..., 1, :], b[..., 2, :]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-2)
+
+
+def _numpy_load_rows(data: Any, Rt: np.ndarray, eta: np.ndarray, loads: Sequence[tuple[np.ndarray, Any]]
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_load_rows` (without the second-order option) on numpy batches, the loads stacked on an axis
+    before the matrix axes: one product per term for all of them, summed over that axis."""
+    abscissae = tuple(float(point[0]) for point, _ in loads)
+    k = data.remembered(("numpy_load_stations",) + abscissae, lambda d: _load_stations(d, abscissae))
+    wrenches = _join([wrench[..., None, :, :] for _, wrench in loads], -3)     # (..., L, 6, 1)
+    Rt = Rt[..., None, :, :]
+    f = np.matmul(Rt, wrenches[..., 0:3, :])
+    m = np.matmul(Rt, wrenches[..., 3:6, :])
+    eta = eta[..., None, :, :]
+    rho = k["rho0"] + np.matmul(k["Phi"], eta)
+    Theta, _, _ = _rotation_jacobian(NUMPY, np.matmul(k["Lam"], eta))
+    lin = f.sum(axis=-3) * -1.0
+    ang = (_stacked_cross(rho, f) + m).sum(axis=-3) * -1.0
+    mod = np.matmul(k["PhiT"], f) + np.matmul(np.matmul(Theta, k["Lam"]).swapaxes(-1, -2), m)
+    mod = mod.sum(axis=-3) * -1.0
+    if data.stiffening:
+        mod = mod + (np.matmul(k["G1"], eta) * f[..., 0:1, :]).sum(axis=-3)
+    return lin, ang, mod
 
 
 def beam_load_vector(beam: Any, rotation: np.ndarray, offset: np.ndarray, eta: np.ndarray,

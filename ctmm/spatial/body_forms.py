@@ -14,7 +14,7 @@ translation has carried to ``P``), so that ``A_child = A_parent(P) + S a_rel + c
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import partial
+from functools import lru_cache, partial
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -63,6 +63,9 @@ def rigid_body_terms(ops: Ops, *, mass: float, inertia: np.ndarray, center_of_ma
         ``M = [[m I, -m [r_c]x], [m [r_c]x, I_P]]``, ``h`` the velocity, gravity and load terms,
         ``Kin[e] = [[I, -[r_e]x], [0, I]]``, ``c[e] = [omega x (omega x r_e) ; 0]``, ``RF[e] = Kin[e]^T``.
     """
+    if ops.name == "numpy":
+        return _numpy_rigid_body_terms(mass, inertia, center_of_mass, points, rotation, offset, omega, gravity, loads)
+
     def located(p: np.ndarray) -> Any:
         r = ops.matmul(rotation, constant(ops, p))
         return r if offset is None else r + offset
@@ -93,6 +96,60 @@ def rigid_body_terms(ops: Ops, *, mass: float, inertia: np.ndarray, center_of_ma
         Kin[name] = K
         RF[name] = ops.transpose(K)
     return BodyTerms(M=M, h=ops.block([[h_lin], [h_ang]]), Kin=Kin, c=c, RF=RF)
+
+
+def _numpy_rigid_body_terms(mass: float, inertia: np.ndarray, center_of_mass: np.ndarray,
+                            points: Mapping[str, np.ndarray], rotation: np.ndarray, offset: Any, omega: Any,
+                            gravity: np.ndarray, loads: Sequence[tuple[np.ndarray, Any]]) -> BodyTerms:
+    """:func:`rigid_body_terms` on numpy batches ``(B, r, c)``: the same operations on the same operands, the
+    blocks filled into one allocation each in place of the block assembly (the batch of a result is that of
+    its operands, as there)."""
+    def located(p: np.ndarray) -> np.ndarray:
+        r = np.matmul(rotation, np.asarray(p, dtype=float).reshape(3, 1))
+        return r if offset is None else r + offset
+
+    r_c = located(center_of_mass)
+    inertia_world = np.matmul(np.matmul(rotation, np.asarray(inertia, dtype=float)), rotation.swapaxes(-1, -2))
+    rc_x = skew(NUMPY, r_c)
+    lower = inertia_world - np.matmul(rc_x, rc_x) * mass
+    M = np.empty(np.broadcast_shapes(rc_x.shape[:-2], lower.shape[:-2]) + (6, 6), dtype=lower.dtype)
+    M[..., :3, :3] = _EYE3 * mass
+    M[..., :3, 3:] = rc_x * -mass
+    M[..., 3:, :3] = rc_x * mass
+    M[..., 3:, 3:] = lower
+    g = np.asarray(gravity, dtype=float).reshape(1, 3, 1)
+    h_lin = g * -mass
+    h_ang = cross(NUMPY, r_c, g) * -mass
+    if omega is not None:
+        centripetal = cross(NUMPY, omega, cross(NUMPY, omega, r_c))
+        h_lin = h_lin + centripetal * mass
+        h_ang = h_ang + cross(NUMPY, omega, np.matmul(inertia_world, omega)) + cross(NUMPY, r_c, centripetal) * mass
+    for point, wrench in loads:
+        f = wrench[..., 0:3, 0:1]
+        h_lin = h_lin - f
+        h_ang = h_ang - wrench[..., 3:6, 0:1] - cross(NUMPY, located(point), f)
+    h = np.empty(np.broadcast_shapes(h_lin.shape[:-2], h_ang.shape[:-2]) + (6, 1),
+                 dtype=np.result_type(h_lin, h_ang))
+    h[..., :3, :] = h_lin
+    h[..., 3:, :] = h_ang
+    Kin, c, RF = {}, {}, {}
+    for name, p in points.items():
+        r_e = located(p)
+        K = np.zeros(r_e.shape[:-2] + (6, 6), dtype=r_e.dtype)
+        K[..., _DIAGONAL6, _DIAGONAL6] = 1.0
+        K[..., :3, 3:] = skew(NUMPY, r_e) * -1.0
+        if omega is None:
+            c[name] = np.zeros((1, 6, 1))
+        else:
+            accel = cross(NUMPY, omega, cross(NUMPY, omega, r_e))
+            c[name] = np.concatenate([accel, np.zeros(accel.shape[:-2] + (3, 1), dtype=accel.dtype)], axis=-2)
+        Kin[name] = K
+        RF[name] = K.swapaxes(-1, -2)
+    return BodyTerms(M=M, h=h, Kin=Kin, c=c, RF=RF)
+
+
+_EYE3 = np.eye(3)
+_DIAGONAL6 = np.arange(6)
 
 
 @dataclass(frozen=True)
@@ -129,6 +186,23 @@ class JointMotion:
     prescribed: Any = None
 
 
+def _axis_columns(ops: Ops, axis: Any, start: int) -> tuple[Any, Any]:
+    """``(a, S)``: a joint axis as an ops column and its unit twist ``S`` (6 x 1) with the axis in rows
+    ``start:start + 3`` (numpy constants read-only, shared by the calls with that axis)."""
+    return _axis_constants(ops, tuple(np.asarray(axis, dtype=float).reshape(3).tolist()), start)
+
+
+@lru_cache(maxsize=256)
+def _axis_constants(ops: Ops, axis: tuple[float, float, float], start: int) -> tuple[Any, Any]:
+    twist = np.zeros(6)
+    twist[start:start + 3] = axis
+    out = (constant(ops, axis), constant(ops, twist))
+    if ops.name == "numpy":
+        for value in out:
+            value.flags.writeable = False
+    return out
+
+
 def _law(ops: Ops, joint, q: list, v: list, u: Any) -> tuple[Any, Any, Any]:
     """``tau = u - k (q - q_ref) - c v`` of a 1- or 2-DOF joint, with its tangents."""
     k, c, ref = joint.stiffness, joint.damping, joint.reference
@@ -158,13 +232,12 @@ def joint_motion(ops: Ops, joint, q: list, v: list, u: Any = None, acceleration:
     if kind == "weld":
         return JointMotion(ops.eye(3), None, ops.zeros(6, 0), None, None, None)
     if kind == "revolute":
-        a = constant(ops, joint.axis)
+        a, S = _axis_columns(ops, joint.axis, 3)
         motion = dict(rotation=axis_rotation(ops, joint.axis, q[0]), translation=None,
-                      S=constant(ops, np.r_[np.zeros(3), joint.axis]), bias=None, linear=None, angular=a * v[0])
+                      S=S, bias=None, linear=None, angular=a * v[0])
     elif kind == "prismatic":
-        a = constant(ops, joint.axis)
-        motion = dict(rotation=ops.eye(3), translation=a * q[0], S=constant(ops, np.r_[joint.axis, np.zeros(3)]),
-                      bias=None, linear=a * v[0], angular=None)
+        a, S = _axis_columns(ops, joint.axis, 0)
+        motion = dict(rotation=ops.eye(3), translation=a * q[0], S=S, bias=None, linear=a * v[0], angular=None)
     elif kind == "universal":
         first = axis_rotation(ops, joint.axis1, q[0])
         a1 = constant(ops, joint.axis1)
@@ -418,14 +491,12 @@ class SpatialScene:
             for load in self._loads[j]:
                 wrench = _signal_column(ops, load.force + load.moment, t)
                 if load.axes == "body":
-                    wrench = ops.block([[ops.matmul(R_c, ops.sub(wrench, slice(0, 3), slice(0, 1)))],
-                                        [ops.matmul(R_c, ops.sub(wrench, slice(3, 6), slice(0, 1)))]])
+                    wrench = _turned_wrench(ops, R_c, wrench)
                 loads.append((body.points[load.point], wrench))
             for entry in (wrenches or {}).get(j, ()):       # (point, [f ; m] world) or (point, [f ; m], "body")
                 wrench = entry[1]
                 if len(entry) > 2 and entry[2] == "body":
-                    wrench = ops.block([[ops.matmul(R_c, ops.sub(wrench, slice(0, 3), slice(0, 1)))],
-                                        [ops.matmul(R_c, ops.sub(wrench, slice(3, 6), slice(0, 1)))]])
+                    wrench = _turned_wrench(ops, R_c, wrench)
                 loads.append((entry[0], wrench))
             modal = model.modal[j]
             if modal is not None:
@@ -468,6 +539,15 @@ class SpatialScene:
         ``wrenches`` as in :meth:`terms`)."""
         q, v = self.model.check_state(q, v)
         return self.sweep(NUMPY, q, v, t, self.numpy_inputs(inputs, t, q.shape[0]), wrenches)
+
+
+def _turned_wrench(ops: Ops, rotation: Any, wrench: Any) -> Any:
+    """``[R f ; R m]`` of a wrench ``[f ; m]`` (6, 1) given in the axes ``rotation`` turns to world axes."""
+    if ops.name == "numpy":                     # both halves in one product (the same entries)
+        pair = np.matmul(rotation[..., None, :, :], wrench.reshape(wrench.shape[:-2] + (2, 3, 1)))
+        return pair.reshape(pair.shape[:-3] + (6, 1))
+    return ops.block([[ops.matmul(rotation, ops.sub(wrench, slice(0, 3), slice(0, 1)))],
+                      [ops.matmul(rotation, ops.sub(wrench, slice(3, 6), slice(0, 1)))]])
 
 
 def _signal_column(ops: Ops, signals: Sequence[Any], t: Any) -> Any:

@@ -15,7 +15,7 @@ from .beam_terms import beam_energy
 from .body_forms import SpatialScene
 from .model import SpatialModel
 
-__all__ = ["SpatialSolution", "solve", "accelerations", "reactions", "state_rates", "scene_of", "energy"]
+__all__ = ["SpatialSolution", "solve", "scene_solution", "accelerations", "reactions", "state_rates", "scene_of", "energy"]
 
 
 def _batched(column: Any, batch: int) -> np.ndarray:
@@ -84,7 +84,15 @@ def solve(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[s
     t = validation.finite("t", t)
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{input name: number or f(t)}}, got {inputs!r:.80}")
-    wrenches = _checked_wrenches(model, wrenches)
+    return scene_solution(scene, q, v, t, inputs, _checked_wrenches(model, wrenches))
+
+
+def scene_solution(scene: SpatialScene, q: Any, v: Any, t: float, inputs: Mapping[str, Any] | None = None,
+                   wrenches: Mapping[int, Any] | None = None) -> SpatialSolution:
+    """:func:`solve` on a model's :class:`SpatialScene` with a finite time ``t`` [s], an ``inputs`` mapping (or
+    ``None``) and ``wrenches`` of the checked form (callers that built them, e.g. the ports' actuators, in inner
+    loops); the state is checked and failures are reported as there."""
+    model = scene.model
     try:
         solution = scene.solve(q, v, t, inputs, wrenches)
     except SingularPivotError as exc:
@@ -152,13 +160,15 @@ def reactions(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mappi
 def state_rates(model: SpatialModel, x: np.ndarray, t: float, inputs: Mapping[str, Any] | None = None
                 ) -> np.ndarray:
     """``x_dot = [G(q) v ; v_dot]`` of the state ``x = [q ; v]`` (1-D or ``(B, nq + nv)``)."""
-    scene_of(model)
+    scene = scene_of(model)
     size = model.n_positions + model.n_velocities
     if isinstance(x, (str, bytes, bool, Mapping)) or x is None or np.shape(x)[-1:] != (size,):
         raise ModelError(f"x must be the state [q ; v]: {size} numbers (or (B, {size})), got {x!r:.80}")
     x = validation.finite_array("x (the state [q ; v])", x)
     q, v = x[..., :model.n_positions], x[..., model.n_positions:]
-    rates = solve(model, q, v, t, inputs).velocity_rates
+    if inputs is not None and not isinstance(inputs, Mapping):
+        raise ModelError(f"inputs must be a mapping {{input name: number or f(t)}}, got {inputs!r:.80}")
+    rates = scene_solution(scene, q, v, validation.finite("t", t), inputs).velocity_rates    # one scene per call
     out = np.concatenate([model.position_rates(q if q.ndim == 2 else q[None], v if v.ndim == 2 else v[None]),
                           rates], axis=-1)
     return out[0] if x.ndim == 1 else out

@@ -123,4 +123,11 @@ def quaternion_rate(q: np.ndarray, omega: np.ndarray) -> np.ndarray:
 
 def block_diagonal(ops: Ops, a: Any, b: Any, rows_a: int, rows_b: int) -> Any:
     """``diag(a, b)`` of two square blocks of sizes ``rows_a``, ``rows_b``."""
+    if ops.name == "numpy":                     # the same matrix filled into one allocation
+        a, b = np.asarray(a), np.asarray(b)
+        out = np.zeros(np.broadcast_shapes(a.shape[:-2], b.shape[:-2]) + (rows_a + rows_b,) * 2,
+                       dtype=np.result_type(a, b))
+        out[..., :rows_a, :rows_a] = a
+        out[..., rows_a:, rows_a:] = b
+        return out
     return ops.block([[a, ops.zeros(rows_a, rows_b)], [ops.zeros(rows_b, rows_a), b]])

@@ -67,7 +67,7 @@ from ..named_ports import NamedPorts
 from . import sensor_maps as maps
 from .beam_ports import beam_actuator_rows, beam_sensor_rows
 from .body_forms import SpatialScene
-from .dynamics import accelerations as sweep_accelerations
+from .dynamics import accelerations as sweep_accelerations, scene_solution
 from .model import SpatialModel
 from .sensor_maps import rotation_vector, xyz_angles
 
@@ -263,7 +263,9 @@ class SpatialPorts(NamedPorts):
         """``v_dot`` (1-D) with the actuator ``inputs`` (:meth:`inputs`) applied."""
         if inputs is None:
             return sweep_accelerations(self.model, q, v, t)
-        return sweep_accelerations(self.model, q, v, t, inputs.joint, inputs.wrenches)
+        rates = scene_solution(self.scene, q, v, validation.finite("t", t), inputs.joint,
+                               inputs.wrenches).velocity_rates          # the wrenches built by inputs()
+        return rates[0] if np.ndim(q) == 1 else rates
 
     # -- names ----------------------------------------------------------------------------------
     def check_sensor(self, name: str, what: str = "sensor") -> str:
