@@ -181,10 +181,11 @@ def _step(loops: ClosedLoops, closed: Any, project: Any, nq: int, nv: int, n_inp
     projection carried as the largest so far."""
     import casadi as ca
 
-    q, v, u = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("u", n_inputs)
-    p, t = ca.SX.sym("p", n_parameters), ca.SX.sym("t")
+    q, v, u = ca.MX.sym("q", nq), ca.MX.sym("v", nv), ca.MX.sym("u", n_inputs)
+    p, t = ca.MX.sym("p", n_parameters), ca.MX.sym("t")
+    # calls of the one ``closed`` (MX): the generated C holds its sweep once, not once per function
     acceleration = ca.Function("acceleration", [q, v, u, p, t], [closed(q, v, u, p, t)[0]])
-    condition = ca.Function("condition", [q, v, p, t], [closed(q, v, ca.DM.zeros(n_inputs), p, t)[1]])
+    condition = ca.Function("condition", [q, v, p, t], [closed(q, v, ca.MX.zeros(n_inputs), p, t)[1]])
     inner = loops.step(acceleration, n_inputs, n_parameters)
     size = loops.state_size
     Y, held, h = ca.MX.sym("y", size + 2), ca.MX.sym("u", n_inputs), ca.MX.sym("h")

@@ -70,7 +70,7 @@ from .compiled_planar_sensors import SymbolicKinematics
 from .compiled_parameters import compile_refusal, parameter_vector
 from .compiled_scene import DEFAULT_ROWS, symbolic_accelerations_with_inputs
 from .errors import ModelError, SimulationError
-from .generated_loop import compiled_time_loop, run_blocks
+from .generated_loop import compiled_time_loop, run_blocks, selected_outputs
 from .loop_integration import (CONDITION_LIMIT, PROJECTION_SKIP, PROJECTION_TOLERANCE, check_consistent,
                                compliance_condition, deformation_failure, furthest_cut, projection_failure,
                                singular_compliance)
@@ -234,9 +234,9 @@ class CompiledKinematicLoops:
         closed, constraint = symbolic_closed_loop(self.model, n_p)
         q, v, p, t = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("p", n_p), ca.SX.sym("t")
         qdd, condition, forces, phi, phi_dot, G = closed(q, v, ca.DM.zeros(0), p, t)
-        y = ca.vertcat(q, v)
-        rate = ca.Function("closed_rate", [y, p, t], [ca.vertcat(v, qdd), condition])
-        outputs = ca.Function("outputs", [y, p, t], [forces, phi, phi_dot, G])
+        terms = ca.Function("closed_terms", [ca.vertcat(q, v), p, t], [ca.vertcat(v, qdd), condition, forces, phi,
+                                                                        phi_dot, G])
+        rate, outputs = selected_outputs(terms, [("closed_rate", (0, 1)), ("outputs", (2, 3, 4, 5))])
         project = symbolic_projection(constraint, n, self.iterations)
         step = projected_rk4_step(rate, project, 2 * n, n_p)
         return step, [outputs]

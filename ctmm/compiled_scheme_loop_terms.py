@@ -203,15 +203,23 @@ class SchemeLoopTerms:
         now = self._delayed_now(q, v)                       # the history before t = 0: held
         loop_errors = ca.Function("loop_errors", [q, v, p, t], [ca.vertcat(*self.errors(q, v, p, t, now))])
         delayed_sensors = ca.Function("delayed_sensors", [q, v], [ca.vertcat(*now)])
-        _, acceleration = loops.rate(self.sweep, u, p, t, ca.vertcat(q, v, ca.SX.zeros(loops.n_controller_states)),
-                                     now)
-        c = ca.SX.sym("c", self.controller_size)
-        state = ca.vertcat(q, v, c[:loops.n_controller_states])
-        restart = loops.rate(self.sweep, u, p, t, state, self.delayed_values(c, 0.0, t))[1]
+        c, nz = ca.SX.sym("c", self.controller_size), loops.n_controller_states
         delayed_at = ca.Function("delayed_at", [c, t], [ca.vertcat(*self.delayed_values(c, 0.0, t))])
-        self.state_functions = (ca.Function("restart", [q, v, u, p, t, c], [restart, self.with_sample(
-            c, q, v, restart, replace=True)]), loop_errors, delayed_sensors, delayed_at)
-        return ca.Function("acceleration", [q, v, u, p, t], [acceleration])
+        # one closed-loop rate at given controller states z and delayed signals d, called (MX) by the acceleration
+        # and the restart: the generated C holds the sweep once for both
+        z, d = ca.SX.sym("z", nz), ca.SX.sym("d", len(now))
+        rate = ca.Function("loop_rate", [q, v, u, p, t, z, d],
+                           [loops.rate(self.sweep, u, p, t, ca.vertcat(q, v, z), [d[i] for i in range(len(now))])[1]])
+        acceleration = ca.SX.sym("acceleration", loops.nv)
+        sample = ca.Function("restart_sample", [c, q, v, acceleration],
+                             [self.with_sample(c, q, v, acceleration, replace=True)])
+        Q, V, T = ca.MX.sym("q", loops.nq), ca.MX.sym("v", loops.nv), ca.MX.sym("t")
+        U, P, C = ca.MX.sym("u", len(self.actuators)), ca.MX.sym("p", self.parameters.size), ca.MX.sym("c", c.size1())
+        restart = rate(Q, V, U, P, T, C[:nz], delayed_at(C, T))
+        self.state_functions = (ca.Function("restart", [Q, V, U, P, T, C], [restart, sample(C, Q, V, restart)]),
+                                loop_errors, delayed_sensors, delayed_at)
+        return ca.Function("acceleration", [Q, V, U, P, T], [rate(Q, V, U, P, T, ca.MX.zeros(nz),
+                                                                  delayed_sensors(Q, V))])
 
     def _delayed_now(self, q: Any, v: Any) -> list:
         """The delayed loops' signals at ``(q, v)`` on symbols."""

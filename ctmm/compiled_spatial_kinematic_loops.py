@@ -61,6 +61,7 @@ from .compiled_kinematic_loops import (CompiledKinematicLoops, first_failure, ge
 from .compiled_spatial import position_rates, spatial_compile_refusal
 from .compiled_spherical_cut_law import rotation_limit_note, symbolic_spherical_law_moment
 from .errors import SimulationError
+from .generated_loop import selected_outputs
 from .compiled_spatial_cut_points import (SymbolicStates, deformable_sides, symbolic_deformable_frame,
                                           symbolic_deformable_point)
 from .loop_integration import PROJECTION_SKIP, deformation_failure
@@ -401,9 +402,10 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
         closed, constraint, _, _ = symbolic_spatial_closed_loop(self.model)
         q, v, p, t = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("p", 0), ca.SX.sym("t")
         v_dot, condition, forces, phi, phi_dot, G, child_forces, child_moments = closed(q, v, ca.DM.zeros(0), p, t)
-        y = ca.vertcat(q, v)
-        rate = ca.Function("closed_rate", [y, p, t], [ca.vertcat(position_rates(tree, q, v), v_dot), condition])
-        outputs = ca.Function("outputs", [y, p, t], [forces, phi, phi_dot, G, child_forces, child_moments])
+        terms = ca.Function("closed_terms", [ca.vertcat(q, v), p, t], [ca.vertcat(position_rates(tree, q, v), v_dot),
+                                                                        condition, forces, phi, phi_dot, G,
+                                                                        child_forces, child_moments])
+        rate, outputs = selected_outputs(terms, [("closed_rate", (0, 1)), ("outputs", (2, 3, 4, 5, 6, 7))])
 
         project = symbolic_spatial_projection(tree, constraint, self.iterations)
         return projected_rk4_step(rate, project, nq + nv, 0), [outputs]

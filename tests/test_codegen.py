@@ -301,3 +301,27 @@ def test_a_kernel_at_the_optimization_level_is_another_entry_with_the_same_numbe
     assert len(folders[0]) == 1 and len(folders[1]) == 2
     for result in results:
         assert np.max(np.abs(result - reference)) <= 1e-14 * np.max(np.abs(reference))
+
+
+def test_selected_outputs_share_one_copy_of_the_terms_in_the_c_and_give_the_same_numbers():
+    """Functions of outputs of one SX ``terms`` (a kinematic loop's rate and its cut loads) call it: the C text holds
+    its expressions once (two SX functions of the same expressions held them twice), and the numbers are those of the
+    SX functions on the same expressions."""
+    import casadi as ca
+    import numpy as np
+
+    from ctmm.generated_loop import selected_outputs
+
+    x, t = ca.SX.sym("x", 3), ca.SX.sym("t")
+    shared = ca.sinh(ca.mtimes(x.T, x)) * x + t          # the expensive part, in both outputs
+    terms = ca.Function("terms", [x, t], [shared[0] * 2.0, shared[1:] - t])
+    rate, loads = selected_outputs(terms, [("rate", (0,)), ("loads", (1, 0))])
+    separate = (ca.Function("rate", [x, t], [shared[0] * 2.0]), ca.Function("loads", [x, t], [shared[1:] - t,
+                                                                                              shared[0] * 2.0]))
+    assert codegen.casadi_source([rate, loads], "shared").count("sinh(") == 1
+    assert codegen.casadi_source(list(separate), "separate").count("sinh(") == 2
+    point = (np.array([0.3, -0.2, 0.5]), 0.7)
+    assert [rate.name(), loads.name()] == ["rate", "loads"]
+    assert float(rate(*point)) == float(separate[0](*point))
+    for mine, theirs in zip(loads(*point), separate[1](*point)):
+        np.testing.assert_array_equal(np.asarray(mine), np.asarray(theirs))
