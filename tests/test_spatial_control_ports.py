@@ -156,6 +156,12 @@ def test_actuators_equal_reference_generalised_forces() -> None:
         tau += kin.jacobian_angular[j].T @ moment
     theirs = forward_dynamics(tree, qr, v, tau)
     np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-10 * np.max(np.abs(theirs)))
+    # a hand-built SpatialInputs of the same values (unchecked) takes the checked path: the same answer
+    built = p.inputs(values)
+    assert built.checked
+    by_hand = ports.SpatialInputs(dict(built.joint), {j: list(w) for j, w in built.wrenches.items()})
+    assert not by_hand.checked
+    np.testing.assert_array_equal(p.accelerations(q, v, 0.0, by_hand), ours)
     units = {p.actuator_unit(n) for n in ("j0.force_x", "b1.force_y", "b1.tip.force_z")}
     assert units == {"N"} and p.actuator_unit("b2.moment_x") == p.actuator_unit("j2.torque_x") == "N m"
 
@@ -176,6 +182,12 @@ def test_refusals_name_what_is_allowed() -> None:
         p.resolve("b1.omega_x")
     with pytest.raises(ModelError, match="finite"):
         p.inputs({"b1.force_x": float("nan")})
+    # a hand-built SpatialInputs is checked: an unknown body index or a non-finite load named, not a numpy error
+    q, v = quaternion_joint_state(rng, model)
+    with pytest.raises(ModelError, match="body"):
+        p.accelerations(q, v, 0.0, ports.SpatialInputs({}, {99: [(np.zeros(3), np.ones((1, 6, 1)))]}))
+    with pytest.raises(ModelError, match="finite"):
+        p.accelerations(q, v, 0.0, ports.SpatialInputs({}, {0: [(np.zeros(3), np.full((1, 6, 1), np.nan))]}))
     welded = sp.SpatialModel("w", [sp.SpatialBody("a", 1.0, (1, 1, 1)), sp.SpatialBody("b", 1.0, (1, 1, 1)),
                                    sp.Revolute(name="r", parent=None, child="a"),
                                    sp.Weld(name="w", parent="a", child="b")])

@@ -295,7 +295,7 @@ class SpatialKinematicLoopModel:
             R, origin = bodies[parent.body][0][0], bodies[parent.body][1][0]
             at = parent.point if cut.kind == "revolute" else R.T @ (self._point(bodies, child)[0][0] - origin)
             wrenches[parent.body] = [(at, -load.reshape(1, 6, 1))]
-        return SpatialInputs({}, wrenches)
+        return SpatialInputs({}, wrenches, checked=True)
 
     def cut_coordinates(self, q: Any, v: Any, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """The coordinate across every revolute or prismatic cut (angle [rad] or slide [m]; NaN for the other kinds)
@@ -512,7 +512,7 @@ class SpatialKinematicLoopModel:
                 R, origin = bodies[parent.body][0][0], bodies[parent.body][1][0]
                 at = parent.point if frame.basis is None else R.T @ (self._point(bodies, child)[0][0] - origin)
                 wrenches.setdefault(parent.body, []).append((at, -load))
-        return SpatialInputs(joint, wrenches)
+        return SpatialInputs(joint, wrenches, checked=True)
 
     # -- assembly and projection -------------------------------------------------------------------------
     def _held(self, keep: Sequence[str]) -> list[int]:

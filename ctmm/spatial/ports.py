@@ -117,10 +117,16 @@ class SpatialInputs:
         Extra loads by body index: ``(point (3,) body axes [m], numpy batched column (1, 6, 1) [f ; m] world
         axes [N, N m])``, or ``(point, column, "body")`` with ``[f ; m]`` in the body's axes (of a beam: its
         floating frame; the ``force_body`` / ``moment_body`` actuators).
+    checked : bool
+        ``True`` when the wrenches were built by ctmm (:meth:`SpatialPorts.inputs`, the loop drivers) in the form
+        the sweep reads, so :meth:`SpatialPorts.accelerations` skips their check in inner loops; a hand-built
+        ``SpatialInputs`` keeps the default ``False`` and its wrenches are checked (a bad entry is a
+        :class:`ModelError` naming it).
     """
 
     joint: Mapping[str, np.ndarray] = field(default_factory=dict)
     wrenches: Mapping[int, list] = field(default_factory=dict)
+    checked: bool = False
 
 
 def _joint_sensor_names(joint) -> list[tuple[str, str, int, str]]:
@@ -263,6 +269,8 @@ class SpatialPorts(NamedPorts):
         """``v_dot`` (1-D) with the actuator ``inputs`` (:meth:`inputs`) applied."""
         if inputs is None:
             return sweep_accelerations(self.model, q, v, t)
+        if not inputs.checked:                              # a hand-built SpatialInputs: its wrenches checked
+            return sweep_accelerations(self.model, q, v, t, inputs.joint, inputs.wrenches)
         rates = scene_solution(self.scene, q, v, validation.finite("t", t), inputs.joint,
                                inputs.wrenches).velocity_rates          # the wrenches built by inputs()
         return rates[0] if np.ndim(q) == 1 else rates
@@ -325,7 +333,7 @@ class SpatialPorts(NamedPorts):
         for (j, point, axes), wrench in body.items():
             entry = (np.asarray(point, float), wrench.reshape(1, 6, 1))
             wrenches.setdefault(j, []).append(entry if axes == "world" else entry + (axes,))
-        return SpatialInputs(joint, wrenches)
+        return SpatialInputs(joint, wrenches, checked=True)
 
 
 def _state(model: SpatialModel, q, v, t) -> tuple[np.ndarray, np.ndarray, float]:
