@@ -280,3 +280,49 @@ def test_a_law_that_is_not_affine_is_refused():
 
     with pytest.raises(ModelError, match="not affine"):
         Cubic("cubic", 10.0).transfer_matrix(np.array([1j]))
+
+
+def test_the_affine_form_is_read_off_the_terms_in_every_direction():
+    """Each direction of the probe (x, v, the input) is checked on its own: terms that are affine in all but
+    one are refused, a mass that moves with the motion and terms that do not take a batch are refused by name;
+    affine terms give their stated numbers exactly."""
+    from ctmm.elements.lumped import PointElement
+
+    class Stiffening(GroundedSpring):                           # h not affine in x
+        def terms(self, ops, motion, eta=None, eta_dot=None, t=0.0, u=None):
+            body = super().terms(ops, motion, eta, eta_dot, t, u)
+            return type(body)(M=body.M, h=body.h + motion.pose[0] ** 2, Kin=body.Kin, c=body.c, RF=body.RF)
+
+    class Quadratic(Damper):                                   # tau not affine in v (stated tangent kept)
+        def terms(self, ops, q_rel, v_rel, t=0.0, u=None):
+            joint = super().terms(ops, q_rel, v_rel, t, u)
+            return type(joint)(S=joint.S, tau=joint.tau - v_rel * v_rel, tau_q=joint.tau_q, tau_v=joint.tau_v)
+
+    class SquaredInput(Spring):                                # tau not affine in the input force
+        def terms(self, ops, q_rel, v_rel, t=0.0, u=None):
+            joint = super().terms(ops, q_rel, v_rel, t, u)
+            force = (u or {}).get("force", 0.0)
+            return type(joint)(S=joint.S, tau=joint.tau + force * force, tau_q=joint.tau_q, tau_v=joint.tau_v)
+
+    class Moving(Mass):                                        # M depends on the velocity
+        def terms(self, ops, motion, eta=None, eta_dot=None, t=0.0, u=None):
+            body = super().terms(ops, motion, eta, eta_dot, t, u)
+            return type(body)(M=body.M + 0 * motion.twist[0].real + (motion.twist[0] != 0), h=body.h, Kin=body.Kin,
+                              c=body.c, RF=body.RF)
+
+    class Unbatched(Mass):                                     # h of a fixed batch of 3
+        def terms(self, ops, motion, eta=None, eta_dot=None, t=0.0, u=None):
+            body = super().terms(ops, motion, eta, eta_dot, t, u)
+            return type(body)(M=body.M, h=np.zeros((3, 1, 1)) + body.h[:1], Kin=body.Kin, c=body.c, RF=body.RF)
+
+    for make, message in [(lambda: Stiffening("g", 5.0), "not affine"), (lambda: Quadratic("d", 2.0), "not affine"),
+                          (lambda: SquaredInput("s", 3.0), "not affine"),
+                          (lambda: Moving("m", 1.0), "mass term depends on the motion"),
+                          (lambda: Unbatched("m", 1.0), "must broadcast against the batch axis")]:
+        with pytest.raises(ModelError, match=message):
+            make()
+    co = PointElement("p", mass=0.3, damping=0.7, stiffness=11.0, force=2.0).axial_coefficients()
+    assert (co.inertia, co.damping, co.stiffness, co.rest, dict(co.inputs)) == (0.3, 0.7, 11.0, 0.0, {"force": -1.0})
+    co = Inerter("i", 0.4, stiffness=30.0, damping=0.2, free_length=0.1).axial_coefficients()
+    assert (co.inertia, co.damping, co.stiffness, dict(co.inputs)) == (0.4, 0.2, 30.0, {"force": 1.0})
+    assert co.rest == pytest.approx(30.0 * 0.1, rel=1e-15)
