@@ -326,3 +326,27 @@ def test_the_affine_form_is_read_off_the_terms_in_every_direction():
     co = Inerter("i", 0.4, stiffness=30.0, damping=0.2, free_length=0.1).axial_coefficients()
     assert (co.inertia, co.damping, co.stiffness, dict(co.inputs)) == (0.4, 0.2, 30.0, {"force": 1.0})
     assert co.rest == pytest.approx(30.0 * 0.1, rel=1e-15)
+
+
+def test_elements_with_the_same_terms_and_data_share_one_probe_and_no_other():
+    """The probe is shared by elements whose terms and data agree to the bit; a subclass with its own terms, or
+    data one ulp apart, is probed on its own; every element owns its coefficients (and stays picklable)."""
+    import pickle
+
+    class Stiffer(Spring):                                     # its own law on the same data
+        def terms(self, ops, q_rel, v_rel, t=0.0, u=None):
+            joint = super().terms(ops, q_rel, v_rel, t, u)
+            return type(joint)(S=joint.S, tau=2.0 * joint.tau, tau_q=2.0 * joint.tau_q, tau_v=joint.tau_v)
+
+    springs = [Spring("a", 7.0, free_length=0.25), Stiffer("b", 7.0, free_length=0.25),
+               Spring("c", 7.0, free_length=0.25), Spring("d", np.nextafter(7.0, 8.0), free_length=0.25)]
+    stiffness = [spring.axial_coefficients().stiffness for spring in springs]
+    assert stiffness == [7.0, 14.0, 7.0, np.nextafter(7.0, 8.0)]
+    assert [spring.axial_coefficients().rest for spring in springs[:3]] == [1.75, 3.5, 1.75]
+    masses = [Mass("m", 2.0), Mass("n", 2.0), GroundedSpring("g", 2.0)]
+    assert [(co.inertia, co.stiffness) for co in (m.axial_coefficients() for m in masses)] == \
+        [(2.0, 0.0), (2.0, 0.0), (0.0, 2.0)]
+    masses[0].axial_coefficients().inputs["force"] = 99.0      # one element's mapping is its own
+    assert masses[1].axial_coefficients().inputs == {"force": -1.0}
+    copy = pickle.loads(pickle.dumps(springs[2]))
+    assert copy.axial_coefficients() == springs[2].axial_coefficients()

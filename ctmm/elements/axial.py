@@ -27,10 +27,10 @@ are in :mod:`ctmm.lumped_forms`.
 from __future__ import annotations
 
 from abc import abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from types import MappingProxyType
-from typing import Any, Mapping
+from typing import Any, Hashable, Mapping
 
 import numpy as np
 
@@ -150,6 +150,40 @@ def joint_coefficients(joint: "AxialJoint") -> AxialCoefficients:
     return AxialCoefficients(0.0 - tangent(terms.tau_a), 0.0 - damping, 0.0 - stiffness, rest, inputs)
 
 
+class _Keyed:
+    """An element standing for every element of the same :meth:`~AxialBody.coefficient_key` (hash and equality by
+    the key alone; the element is dropped once its coefficients are derived, so the memo holds no element)."""
+
+    __slots__ = ("key", "element", "derive")
+
+    def __init__(self, key: Any, element: Element, derive) -> None:
+        self.key, self.element, self.derive = key, element, derive
+
+    def __hash__(self) -> int:
+        return hash(self.key)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _Keyed) and self.key == other.key
+
+
+@lru_cache(maxsize=1024)
+def _shared_coefficients(keyed: _Keyed) -> AxialCoefficients:
+    return keyed.derive(keyed.element)
+
+
+def _coefficients(element: "AxialBody | AxialJoint", derive) -> AxialCoefficients:
+    """``derive(element)``, probed once per :meth:`~AxialBody.coefficient_key` (every element when it is None)."""
+    key = element.coefficient_key()
+    if key is None:
+        return derive(element)
+    keyed = _Keyed((derive, key), element, derive)
+    try:
+        shared = _shared_coefficients(keyed)
+    finally:
+        keyed.element = None
+    return replace(shared, inputs=dict(shared.inputs))         # each element owns its mapping
+
+
 def _lumped(co: AxialCoefficients, connector: bool) -> LumpedCoefficients:
     if not connector:
         return LumpedCoefficients(False, co.inertia, co.damping, co.stiffness)
@@ -174,10 +208,16 @@ class AxialBody(Element):
         """The value of the element's own (first) input at time ``t`` [s]; 0 by default."""
         return 0.0
 
+    def coefficient_key(self) -> Hashable | None:
+        """A hashable value that determines :meth:`terms` completely, or None (the default).  Elements with equal
+        keys share one probe of their terms (:meth:`derive_forms`): a family keys its own :meth:`terms` and the
+        data it reads, and returns None where a subclass replaces them."""
+        return None
+
     def derive_forms(self) -> None:
         """Derive the affine form once; call it last in ``__init__`` (the description is then complete
         and never changes: the verbs only read it)."""
-        self._axial = body_coefficients(self)
+        self._axial = _coefficients(self, body_coefficients)
         self._lumped = _lumped(self._axial, connector=False)
 
     def axial_coefficients(self) -> AxialCoefficients:
@@ -227,10 +267,14 @@ class AxialJoint(Element):
               u: Mapping[str, Any] | None = None) -> JointTerms:
         """The law (``S = [1]``)."""
 
+    def coefficient_key(self) -> Hashable | None:
+        """As :meth:`AxialBody.coefficient_key`: None (the default) probes every element on its own."""
+        return None
+
     def derive_forms(self) -> None:
         """Derive the affine form once; call it last in ``__init__`` (the description is then complete
         and never changes: the verbs only read it)."""
-        self._axial = joint_coefficients(self)
+        self._axial = _coefficients(self, joint_coefficients)
         self._lumped = _lumped(self._axial, connector=True)
 
     def axial_coefficients(self) -> AxialCoefficients:
