@@ -301,23 +301,6 @@ def test_library_collocation_matches_lambert_w():
         assert np.min(np.abs(approx - root)) < 1e-8 * max(1.0, abs(root))
 
 
-def test_no_library_module_imports_the_reference_models():
-    import ast
-    import pathlib
-
-    package = pathlib.Path(ctmm.__file__).parent
-    offenders = []
-    for path in package.rglob("*.py"):
-        if "reference" in path.relative_to(package).parts:
-            continue
-        for node in ast.walk(ast.parse(path.read_text())):
-            names = [node.module or ""] if isinstance(node, ast.ImportFrom) else \
-                [a.name for a in node.names] if isinstance(node, ast.Import) else []
-            if any("reference" in name.split(".") for name in names):
-                offenders.append(str(path.relative_to(package)))
-    assert offenders == []
-
-
 # ------------------------------------------------------------------------------ margins on a grid
 def test_margins_on_a_coarse_grid_are_completed_by_the_certified_search():
     from ctmm.control.analysis import margins
