@@ -275,7 +275,7 @@ def riccati_scalar_entries(entries, start: BoundaryStart, end: BoundaryEnd, f: i
 
 
 def clamped_start_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: BoundaryStart,
-                        end: BoundaryEnd) -> ChainSolution:
+                        end: BoundaryEnd, *, want_log_det: bool = True) -> ChainSolution:
     """:func:`riccati_solve` in stiffness form for a chain whose start displacements are known.
 
     A known start displacement makes the Riccati relation the compliance form
@@ -296,12 +296,13 @@ def clamped_start_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], star
     The rest of the chain is solved by :func:`riccati_solve`; the forces of the clamped prefix
     follow backwards from ``F_in = U_FF^-1 (F_out - U_Fx x_in - u_F)``.  Falls back to
     :func:`riccati_solve` when the start is not of displacement type or no such element exists
-    before the last one.  ``log_det`` is that of the rebased problem (not used in time stepping).
+    before the last one.  ``log_det`` is that of the rebased problem (not used in time stepping: pass
+    ``want_log_det=False`` to skip it, as :func:`riccati_solve`).
     """
     n = Us[0].shape[-1]
     d = n // 2
     if 2 * d != n or sorted(start.e_indices) != list(range(d, n)):
-        return riccati_solve(Us, us, start, end)
+        return riccati_solve(Us, us, start, end, want_log_det=want_log_det)
     xs, fs = slice(0, d), slice(d, n)
     x = start.P0
     prefix = [x]
@@ -317,7 +318,8 @@ def clamped_start_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], star
             break
         P_new = (np.einsum("bij,bj->bi", U[:, fs, xs], x) + u[:, fs]
                  - np.einsum("bij,bj->bi", S_new, np.einsum("bij,bj->bi", U[:, xs, xs], x) + u[:, xs]))
-        rest = riccati_solve(Us[c + 1:], us[c + 1:], BoundaryStart(list(range(d)), S_new, P_new), end)
+        rest = riccati_solve(Us[c + 1:], us[c + 1:], BoundaryStart(list(range(d)), S_new, P_new), end,
+                             want_log_det=want_log_det)
         states = np.empty((len(Us) + 1,) + rest.states.shape[1:], dtype=rest.states.dtype)
         states[c + 1:] = rest.states
         for j in range(c, -1, -1):  # prefix points: known x, forces backwards
@@ -326,7 +328,7 @@ def clamped_start_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], star
             F_out = states[j + 1, :, fs] - np.einsum("bij,bj->bi", U[:, fs, xs], prefix[j]) - u[:, fs]
             states[j, :, fs] = np.linalg.solve(U[:, fs, fs], F_out[..., None])[..., 0]
         return ChainSolution(states, rest.log_det)
-    return riccati_solve(Us, us, start, end)
+    return riccati_solve(Us, us, start, end, want_log_det=want_log_det)
 
 
 def plain_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: BoundaryStart,

@@ -240,8 +240,56 @@ def realise(model: Any) -> Realisation:
     """:class:`Realisation` of the loop of ``model`` (raises :class:`~ctmm.errors.ModelError` as
     :func:`plant_realisation`)."""
     A, b, C, d = plant_realisation(model)
-    eigenvalues = np.linalg.eigvals(A) if 0 < A.shape[0] <= MAX_EIGEN_STATES else np.zeros(0, complex)
+    eigenvalues = open_loop_poles(A) if 0 < A.shape[0] <= MAX_EIGEN_STATES else np.zeros(0, complex)
     return Realisation(A, b, C, d, eigenvalues)
+
+
+def open_loop_poles(A: np.ndarray) -> np.ndarray:
+    """Eigenvalues of ``A`` [1/s]; ``O(n^2)`` for a proportionally damped lumped chain, else dense.
+
+    A lumped chain whose every degree of freedom has mass is realised as ``A = [[0, I], [-Kt, -Ct]]`` with
+    ``Kt = M^-1 K``, ``Ct = M^-1 C`` tridiagonal.  The characteristic polynomial of a tridiagonal matrix depends on
+    its diagonal and on the products of its facing off-diagonal entries only, so where those products are
+    ``>= 0`` the eigenvalues ``w2`` of ``Kt`` are those of the symmetric tridiagonal matrix with the same diagonal
+    and their square roots off it (:func:`scipy.linalg.eigvalsh_tridiagonal`).  Where also ``Ct = alpha I + beta
+    Kt`` to round-off (``|Ct - alpha I - beta Kt| <= 1e-14 max|Ct|``: Rayleigh damping, e.g. a uniform chain
+    with uniform damping), each ``w2`` gives the two roots of ``s^2 + (alpha + beta w2) s + w2``.  Any other
+    ``A`` takes :func:`numpy.linalg.eigvals`.
+    """
+    poles = _proportional_chain_poles(A)
+    return np.linalg.eigvals(A) if poles is None else poles
+
+
+def _proportional_chain_poles(A: np.ndarray) -> np.ndarray | None:
+    n = A.shape[0]
+    m = n // 2
+    if n < 8 or n != 2 * m or np.any(A[:m, :m]) or not np.array_equal(A[:m, m:], np.eye(m)):
+        return None
+    Kt, Ct = -A[m:, :m], -A[m:, m:]
+    band = np.eye(m, dtype=bool) | np.eye(m, k=1, dtype=bool) | np.eye(m, k=-1, dtype=bool)
+    if np.any(Kt[~band]) or np.any(Ct[~band]):
+        return None
+    upper, lower = np.diag(Kt, 1), np.diag(Kt, -1)
+    products = upper * lower
+    if np.any(products < 0.0) or not np.all(upper):
+        return None
+    beta = float(np.mean(np.diag(Ct, 1) / upper))
+    alpha = float(np.mean(np.diag(Ct) - beta * np.diag(Kt)))
+    scale = float(np.max(np.abs(Ct)))
+    if scale == 0.0:                               # undamped
+        alpha = beta = 0.0
+    elif np.max(np.abs(Ct - beta * Kt - alpha * np.eye(m))) > 1e-14 * scale:
+        return None
+    from scipy.linalg import eigvalsh_tridiagonal
+
+    w2 = eigvalsh_tridiagonal(np.diag(Kt).copy(), np.sqrt(products))
+    b = alpha + beta * w2                          # s^2 + b s + w2 = 0 per mode
+    disc = b * b - 4.0 * w2
+    root = np.sqrt(disc.astype(complex))
+    q = -0.5 * (b + np.where(b >= 0.0, 1.0, -1.0) * root)   # the root without cancellation ...
+    with np.errstate(divide="ignore", invalid="ignore"):
+        other = np.where(q != 0.0, w2 / q, -b - q)          # ... and its partner by Vieta
+    return np.concatenate([q, other])
 
 
 def fixed_roots(model: Any, sigma: float = 0.0, realisation: Realisation | None = None) -> np.ndarray:

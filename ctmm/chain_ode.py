@@ -399,6 +399,28 @@ class ChainDynamics:
         out[self.node_of_point < 0] = self.wall_motion(t)[0]
         return out
 
+    def boundary_motion_rows(self, times: np.ndarray) -> np.ndarray:
+        """:meth:`boundary_motion` at every time [s] ``(rows,)``: ``(rows, 6)`` (one call when both supports stand
+        still)."""
+        times = np.asarray(times, dtype=float).reshape(-1)
+        if not any(hasattr(boundary, "displacement") for boundary in (self.chain.start, self.chain.end)):
+            return np.tile(np.array(self.boundary_motion(0.0), dtype=float), (times.size, 1))
+        return np.array([self.boundary_motion(t) for t in times.tolist()], dtype=float).reshape(times.size, 6)
+
+    def point_positions_rows(self, times: np.ndarray, states: np.ndarray) -> np.ndarray:
+        """:meth:`point_positions` of stored rows at once: ``(rows, n_points)`` from ``times`` [s] ``(rows,)`` and
+        ``states`` ``(rows, >= n_I)`` (the same numbers: copies of the states and the boundary motions)."""
+        n, I, q = self.tree.n_nodes, self.index_I, self.index_Q
+        motion = self.boundary_motion_rows(times)
+        x = np.zeros((len(motion), n))
+        x[:, I] = states[:, :I.size]
+        x[:, q] = np.nan
+        if self._start_motion is not None:
+            x[:, self.held] = motion[:, [0]]
+        out = x[:, self.node_of_point]
+        out[:, self.node_of_point < 0] = motion[:, [3]]
+        return out
+
     def point_values(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Positions, velocities, accelerations and forces at every connection point (``(n_points,)`` each;

@@ -45,7 +45,7 @@ def point_values_rows(dynamics: Any, times: np.ndarray, states: np.ndarray,
     m = I.size
     x, v = np.zeros((rows, n)), np.zeros((rows, n))
     x[:, I], v[:, I] = states[:, :m], states[:, m:2 * m]
-    motion = np.array([dynamics.boundary_motion(t) for t in times], dtype=float).reshape(rows, 6)
+    motion = dynamics.boundary_motion_rows(times)
     held = dynamics.held
     x[:, held], v[:, held] = motion[:, [0]], motion[:, [1]]
     linear = dynamics.linear

@@ -460,7 +460,8 @@ def simulate_chain_generated(system: Any, t_final: float, dt: float, *, x0: Mapp
     def result(rows: int) -> SimulationResult:
         return _result(system, chain, times[:rows], states[:rows], outputs, info)
 
-    for k in range(len(times)):
+    passes = plant.guard_screen(q0, divergence_bound)(times, states) & np.all(np.isfinite(states), axis=1)
+    for k in np.flatnonzero(~passes).tolist():          # the rows the screen refuses: the guard names the first
         try:
             guard(float(times[k]), states[k, :m + plant.n_velocities], dt, "rk4-generated")
             if not np.all(np.isfinite(states[k])):

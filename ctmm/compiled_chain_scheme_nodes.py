@@ -277,13 +277,14 @@ def _support_points(dynamics: ChainDynamics, form: NodeForm) -> list[int]:
 
 
 def node_guard(dynamics: ChainDynamics, form: NodeForm, states: np.ndarray, bound: float | None
-               ) -> Callable[[float, int], None]:
-    """``check(t, row)``: the Python DT-TMM path's guard (:class:`~ctmm.guard.DivergenceGuard` on every connection
-    point from the start) on the positions of the stored ``states``."""
+               ) -> tuple[Callable[[float, int], None], np.ndarray]:
+    """``(check(t, row), passes)``: the Python DT-TMM path's guard (:class:`~ctmm.guard.DivergenceGuard` on every
+    connection point from the start) on the positions of the stored ``states``, and whether it accepts each row
+    (the rows it refuses go to ``check``, which raises with its message)."""
     chain = dynamics.chain
     x = node_kinematics(dynamics, form, states)[0]
     guard = DivergenceGuard.from_start(point_labels(chain), rest_positions(chain), x[0], bound=bound)
-    return lambda t, row: guard.check(t, x[row])
+    return (lambda t, row: guard.check(t, x[row])), guard.passes(x)
 
 
 def node_kinematics(dynamics: ChainDynamics, form: NodeForm, states: np.ndarray) -> tuple:

@@ -96,13 +96,13 @@ def simulate_chain_scheme_generated(system: Any, t_final: float, dt: float, sche
     info = {"dt": dt, "method": label, "path": "generated-dttmm", "compile_time_s": compiled.compile_time_s,
             "wall_time_s": wall, "n_steps": n_steps}
     if compiled.nodes is not None:
-        node_check = node_guard(compiled.dynamics, compiled.nodes, states, divergence_bound)
-        guard = lambda t, k: node_check(t, k)                                               # noqa: E731
+        guard, passes = node_guard(compiled.dynamics, compiled.nodes, states, divergence_bound)
     else:
         hint = unstable_loops_hint([lp.loop.name for lp in compiled.loops]) if compiled.loops else ""
         plant_check = compiled.plant.guard(states[0, :m], divergence_bound, hint=hint)    # the numpy path's message
         guard = lambda t, k: plant_check(t, states[k, :2 * m], dt, label)                   # noqa: E731
-    for k in range(len(times)):
+        passes = compiled.plant.guard_screen(states[0, :m], divergence_bound, hint=hint)(times, states[:, :2 * m])
+    for k in np.flatnonzero(~passes).tolist():          # the rows the screen refuses: the guard names the first
         try:
             guard(float(times[k]), k)
         except SimulationError as exc:

@@ -588,7 +588,7 @@ def _generic_solve(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver):
     if solver == "riccati":  # incremental-force form (see ctmm.assembly.shift_forces), stiffness form
         reference = predicted_forces(Us, us, d)
         us, start, end = shift_forces(Us, us, start, end, reference, d)
-        states = clamped_start_solve(Us, us, start, end).states[:, 0, :]
+        states = clamped_start_solve(Us, us, start, end, want_log_det=False).states[:, 0, :]
         reference = reference[:, 0, :]
     else:
         states = SOLVERS[solver](Us, us, start, end).states[:, 0, :]

@@ -280,3 +280,73 @@ def test_a_law_that_is_not_affine_is_refused():
 
     with pytest.raises(ModelError, match="not affine"):
         Cubic("cubic", 10.0).transfer_matrix(np.array([1j]))
+
+
+def test_the_affine_form_is_read_off_the_terms_in_every_direction():
+    """Each direction of the probe (x, v, the input) is checked on its own: terms that are affine in all but
+    one are refused, a mass that moves with the motion and terms that do not take a batch are refused by name;
+    affine terms give their stated numbers exactly."""
+    from ctmm.elements.lumped import PointElement
+
+    class Stiffening(GroundedSpring):                           # h not affine in x
+        def terms(self, ops, motion, eta=None, eta_dot=None, t=0.0, u=None):
+            body = super().terms(ops, motion, eta, eta_dot, t, u)
+            return type(body)(M=body.M, h=body.h + motion.pose[0] ** 2, Kin=body.Kin, c=body.c, RF=body.RF)
+
+    class Quadratic(Damper):                                   # tau not affine in v (stated tangent kept)
+        def terms(self, ops, q_rel, v_rel, t=0.0, u=None):
+            joint = super().terms(ops, q_rel, v_rel, t, u)
+            return type(joint)(S=joint.S, tau=joint.tau - v_rel * v_rel, tau_q=joint.tau_q, tau_v=joint.tau_v)
+
+    class SquaredInput(Spring):                                # tau not affine in the input force
+        def terms(self, ops, q_rel, v_rel, t=0.0, u=None):
+            joint = super().terms(ops, q_rel, v_rel, t, u)
+            force = (u or {}).get("force", 0.0)
+            return type(joint)(S=joint.S, tau=joint.tau + force * force, tau_q=joint.tau_q, tau_v=joint.tau_v)
+
+    class Moving(Mass):                                        # M depends on the velocity
+        def terms(self, ops, motion, eta=None, eta_dot=None, t=0.0, u=None):
+            body = super().terms(ops, motion, eta, eta_dot, t, u)
+            return type(body)(M=body.M + 0 * motion.twist[0].real + (motion.twist[0] != 0), h=body.h, Kin=body.Kin,
+                              c=body.c, RF=body.RF)
+
+    class Unbatched(Mass):                                     # h of a fixed batch of 3
+        def terms(self, ops, motion, eta=None, eta_dot=None, t=0.0, u=None):
+            body = super().terms(ops, motion, eta, eta_dot, t, u)
+            return type(body)(M=body.M, h=np.zeros((3, 1, 1)) + body.h[:1], Kin=body.Kin, c=body.c, RF=body.RF)
+
+    for make, message in [(lambda: Stiffening("g", 5.0), "not affine"), (lambda: Quadratic("d", 2.0), "not affine"),
+                          (lambda: SquaredInput("s", 3.0), "not affine"),
+                          (lambda: Moving("m", 1.0), "mass term depends on the motion"),
+                          (lambda: Unbatched("m", 1.0), "must broadcast against the batch axis")]:
+        with pytest.raises(ModelError, match=message):
+            make()
+    co = PointElement("p", mass=0.3, damping=0.7, stiffness=11.0, force=2.0).axial_coefficients()
+    assert (co.inertia, co.damping, co.stiffness, co.rest, dict(co.inputs)) == (0.3, 0.7, 11.0, 0.0, {"force": -1.0})
+    co = Inerter("i", 0.4, stiffness=30.0, damping=0.2, free_length=0.1).axial_coefficients()
+    assert (co.inertia, co.damping, co.stiffness, dict(co.inputs)) == (0.4, 0.2, 30.0, {"force": 1.0})
+    assert co.rest == pytest.approx(30.0 * 0.1, rel=1e-15)
+
+
+def test_elements_with_the_same_terms_and_data_share_one_probe_and_no_other():
+    """The probe is shared by elements whose terms and data agree to the bit; a subclass with its own terms, or
+    data one ulp apart, is probed on its own; every element owns its coefficients (and stays picklable)."""
+    import pickle
+
+    class Stiffer(Spring):                                     # its own law on the same data
+        def terms(self, ops, q_rel, v_rel, t=0.0, u=None):
+            joint = super().terms(ops, q_rel, v_rel, t, u)
+            return type(joint)(S=joint.S, tau=2.0 * joint.tau, tau_q=2.0 * joint.tau_q, tau_v=joint.tau_v)
+
+    springs = [Spring("a", 7.0, free_length=0.25), Stiffer("b", 7.0, free_length=0.25),
+               Spring("c", 7.0, free_length=0.25), Spring("d", np.nextafter(7.0, 8.0), free_length=0.25)]
+    stiffness = [spring.axial_coefficients().stiffness for spring in springs]
+    assert stiffness == [7.0, 14.0, 7.0, np.nextafter(7.0, 8.0)]
+    assert [spring.axial_coefficients().rest for spring in springs[:3]] == [1.75, 3.5, 1.75]
+    masses = [Mass("m", 2.0), Mass("n", 2.0), GroundedSpring("g", 2.0)]
+    assert [(co.inertia, co.stiffness) for co in (m.axial_coefficients() for m in masses)] == \
+        [(2.0, 0.0), (2.0, 0.0), (0.0, 2.0)]
+    masses[0].axial_coefficients().inputs["force"] = 99.0      # one element's mapping is its own
+    assert masses[1].axial_coefficients().inputs == {"force": -1.0}
+    copy = pickle.loads(pickle.dumps(springs[2]))
+    assert copy.axial_coefficients() == springs[2].axial_coefficients()

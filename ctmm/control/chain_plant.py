@@ -261,13 +261,8 @@ class ChainPlant:
         """The chain's divergence guard on the points that are states or held, and finiteness (``v0`` is
         accepted for the :class:`~ctmm.control.plants.Plant` protocol; a chain's bound is on positions; ``hint``
         appended to the message, :class:`~ctmm.guard.DivergenceGuard`)."""
-        dynamics, chain, size = self.dynamics, self.chain, self.n_positions + self.n_velocities
-        y0 = np.concatenate([q0, np.zeros(self.n_velocities)])
-        start = dynamics.point_positions(0.0, y0)
-        watched = ~np.isnan(start)
-        guard = DivergenceGuard.from_start([name for name, w in zip(point_labels(chain), watched) if w],
-                                           rest_positions(chain)[watched], start[watched], bound=bound,
-                                           hint=hint)
+        dynamics, chain = self.dynamics, self.chain
+        guard, watched, size = self._divergence(q0, bound, hint)
 
         def check(t: float, y: np.ndarray, step: float | None, method: str) -> None:
             state = y[:size]
@@ -276,6 +271,29 @@ class ChainPlant:
                                       time=float(t), element=chain.name)
             guard.check(t, dynamics.point_positions(t, state)[watched])
         return check
+
+    def guard_screen(self, q0: np.ndarray, bound: float | None, hint: str = ""
+                     ) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+        """:meth:`guard` as one test of a block of stored rows: ``passes(times, rows)`` is True where the guard
+        accepts the row (the rows it refuses go to :meth:`guard`, which raises with its message)."""
+        guard, watched, size = self._divergence(q0, bound, hint)
+
+        def passes(times: np.ndarray, rows: np.ndarray) -> np.ndarray:
+            states = np.asarray(rows, dtype=float)[:, :size]
+            positions = self.dynamics.point_positions_rows(np.asarray(times, dtype=float), states)
+            return np.all(np.isfinite(states), axis=1) & guard.passes(positions[:, watched])
+        return passes
+
+    def _divergence(self, q0: np.ndarray, bound: float | None, hint: str) -> tuple[DivergenceGuard, np.ndarray, int]:
+        """The guard on the watched points (those with a position without a sweep), the mask, the state size."""
+        dynamics, chain = self.dynamics, self.chain
+        y0 = np.concatenate([q0, np.zeros(self.n_velocities)])
+        start = dynamics.point_positions(0.0, y0)
+        watched = ~np.isnan(start)
+        guard = DivergenceGuard.from_start([name for name, w in zip(point_labels(chain), watched) if w],
+                                           rest_positions(chain)[watched], start[watched], bound=bound,
+                                           hint=hint)
+        return guard, watched, self.n_positions + self.n_velocities
 
     def check_step(self, q0: np.ndarray, v0: np.ndarray, dt: float, policy: str) -> None:
         """No pre-run step limit for chains on the ODE path (the run's guards apply, as without loops)."""

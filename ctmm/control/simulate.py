@@ -288,7 +288,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
             reference[idx[j - 1] + 1: idx[j] + 1] = reference_pts[j]
         us, start, end = shift_forces(Us, us, start, end, reference, d)
         try:
-            sol = SOLVERS["riccati"](Us, us, start, end)
+            sol = SOLVERS["riccati"](Us, us, start, end, want_log_det=False)      # states only
         except np.linalg.LinAlgError as exc:
             raise SimulationError(f"the step at t = {t_n + h:.6g} s is singular with the real-time loop(s) "
                                   f"{[r.loop.name for r in realtime]} closed (an algebraic loop through an "

@@ -27,8 +27,10 @@ are in :mod:`ctmm.lumped_forms`.
 from __future__ import annotations
 
 from abc import abstractmethod
-from dataclasses import dataclass, field
-from typing import Any, Mapping
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+from types import MappingProxyType
+from typing import Any, Hashable, Mapping
 
 import numpy as np
 
@@ -69,40 +71,64 @@ class AxialCoefficients:
     inputs: Mapping[str, float] = field(default_factory=dict)
 
 
-def _scalar(value: Any) -> np.ndarray:
-    return np.full((1, 1, 1), value, dtype=complex)
+@lru_cache(maxsize=8)
+def _probes(inputs: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, Mapping[str, np.ndarray]]:
+    """The unit complex steps of :func:`_affine` as one batch: rows ``2 p`` and ``2 p + 1`` step probe ``p``
+    (``x``, ``v``, then each input) by ``1j`` and ``2j``; every other entry is zero (read-only arrays, shared by
+    every element with these inputs)."""
+    rows = 2 * (2 + len(inputs))
+    x, v = np.zeros((rows, 1, 1), complex), np.zeros((rows, 1, 1), complex)
+    u = {key: np.zeros((rows, 1, 1), complex) for key in inputs}
+    for p, target in enumerate([x, v] + [u[key] for key in inputs]):
+        target[2 * p: 2 * p + 2, 0, 0] = (1j, 2j)
+        target.flags.writeable = False
+    return x, v, MappingProxyType(u)
 
 
-def _affine(name: str, evaluate, inputs) -> tuple[float, float, float, dict]:
-    """Rest value, ``d/dx``, ``d/dv`` and ``d/du`` of an affine scalar function by unit complex steps."""
-    rest = evaluate(_ZERO, _ZERO, {})
+def _affine(name: str, rest: complex, evaluate, inputs: tuple[str, ...]) -> tuple[float, float, float, dict]:
+    """Rest value, ``d/dx``, ``d/dv`` and ``d/du`` of an affine scalar function by unit complex steps.
+
+    ``rest`` is the function at zero kinematics without inputs; ``evaluate(x, v, u)`` returns its values on a
+    batch (``(B, 1, 1)`` arrays, one call for every step: :func:`_probes`) as a list.  Each step is taken at
+    sizes 1 and 2: the terms are affine only if the second change is exactly twice the first and the real part
+    stays."""
+    x, v, u = _probes(inputs)
+    values = evaluate(x, v, dict(u))
     slopes = []
-    for probe in ((1j, 0.0), (0.0, 1j)) + tuple((0.0, 0.0, key) for key in inputs):
-        values = []
-        for size in (1.0, 2.0):
-            x, v = _scalar(probe[0] * size), _scalar(probe[1] * size)
-            u = {probe[2]: 1j * size} if len(probe) == 3 else {}
-            values.append(evaluate(x, v, u))
-        slope = float(np.imag(values[0]))
-        if values[1] - rest != 2.0 * (values[0] - rest) or np.real(values[0]) != np.real(rest):
+    for first, second in zip(values[0::2], values[1::2]):
+        if second - rest != 2.0 * (first - rest) or first.real != rest.real:
             raise ModelError(f"{name}: its 1-D terms are not affine in the kinematics and inputs; the lumped forms "
                              "(U(s), DT-TMM step, lumped coefficients) need linear time-invariant terms")
-        slopes.append(slope)
-    return float(np.real(rest)), slopes[0], slopes[1], dict(zip(inputs, slopes[2:]))
+        slopes.append(first.imag)
+    return rest.real, slopes[0], slopes[1], dict(zip(inputs, slopes[2:]))
+
+
+def _batch(name: str, value: Any, rows: int) -> list[complex]:
+    """The first entry of a 1-D term per row of a probe batch (a term that does not vary broadcasts)."""
+    value = np.asarray(value)
+    if value.ndim == 3 and value.shape[0] == rows:
+        return [complex(entry) for entry in value[:, 0, 0].tolist()]
+    try:
+        return [complex(entry) for entry in np.broadcast_to(value, (rows,) + value.shape[1:]).reshape(rows, -1)[:, 0]]
+    except ValueError:
+        raise ModelError(f"{name}: its 1-D terms have shape {value.shape} on a batch of {rows} motions; the terms "
+                         "must broadcast against the batch axis (ctmm.ops)") from None
 
 
 def body_coefficients(body: "AxialBody") -> AxialCoefficients:
     """Affine form ``M a + h(x, v, u)`` of a 1-D body's terms (module docstring)."""
-    mass = body.terms(NUMPY, Motion((_ZERO,), (_ZERO,))).M
+    terms = body.terms(NUMPY, Motion((_ZERO,), (_ZERO,)), u={})
+    mass = float(np.asarray(terms.M).reshape(-1)[0])
 
     def h(x, v, u):
         terms = body.terms(NUMPY, Motion((x,), (v,)), u=u)
-        if not np.array_equal(terms.M, mass):
+        if any(entry != mass for entry in np.asarray(terms.M).reshape(-1).tolist()):
             raise ModelError(f"{body.name}: its mass term depends on the motion; the lumped forms need a constant M")
-        return complex(np.asarray(terms.h).reshape(-1)[0])
+        return _batch(body.name, terms.h, len(x))
 
-    rest, stiffness, damping, inputs = _affine(body.name, h, body.inputs)
-    return AxialCoefficients(float(np.asarray(mass).reshape(-1)[0]), damping, stiffness, rest, inputs)
+    rest = complex(np.asarray(terms.h).reshape(-1)[0])
+    rest, stiffness, damping, inputs = _affine(body.name, rest, h, tuple(body.inputs))
+    return AxialCoefficients(mass, damping, stiffness, rest, inputs)
 
 
 def joint_coefficients(joint: "AxialJoint") -> AxialCoefficients:
@@ -113,14 +139,49 @@ def joint_coefficients(joint: "AxialJoint") -> AxialCoefficients:
                          "directions")
 
     def tau(q, v, u):
-        return complex(np.asarray(joint.terms(NUMPY, q, v, 0.0, u).tau).reshape(-1)[0])
+        return _batch(joint.name, joint.terms(NUMPY, q, v, 0.0, u).tau, len(q))
 
-    rest, stiffness, damping, inputs = _affine(joint.name, tau, joint.inputs)
+    rest = complex(np.asarray(terms.tau).reshape(-1)[0])
+    rest, stiffness, damping, inputs = _affine(joint.name, rest, tau, tuple(joint.inputs))
     tangent = lambda value: 0.0 if value is None else float(np.asarray(value).reshape(-1)[0])  # noqa: E731
     if (tangent(terms.tau_q), tangent(terms.tau_v)) != (stiffness, damping):
         raise ModelError(f"{joint.name}: the law's stated tangents tau_q={tangent(terms.tau_q)}, "
                          f"tau_v={tangent(terms.tau_v)} differ from its slopes {stiffness}, {damping}")
     return AxialCoefficients(0.0 - tangent(terms.tau_a), 0.0 - damping, 0.0 - stiffness, rest, inputs)
+
+
+class _Keyed:
+    """An element standing for every element of the same :meth:`~AxialBody.coefficient_key` (hash and equality by
+    the key alone; the element is dropped once its coefficients are derived, so the memo holds no element)."""
+
+    __slots__ = ("key", "element", "derive")
+
+    def __init__(self, key: Any, element: Element, derive) -> None:
+        self.key, self.element, self.derive = key, element, derive
+
+    def __hash__(self) -> int:
+        return hash(self.key)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _Keyed) and self.key == other.key
+
+
+@lru_cache(maxsize=1024)
+def _shared_coefficients(keyed: _Keyed) -> AxialCoefficients:
+    return keyed.derive(keyed.element)
+
+
+def _coefficients(element: "AxialBody | AxialJoint", derive) -> AxialCoefficients:
+    """``derive(element)``, probed once per :meth:`~AxialBody.coefficient_key` (every element when it is None)."""
+    key = element.coefficient_key()
+    if key is None:
+        return derive(element)
+    keyed = _Keyed((derive, key), element, derive)
+    try:
+        shared = _shared_coefficients(keyed)
+    finally:
+        keyed.element = None
+    return replace(shared, inputs=dict(shared.inputs))         # each element owns its mapping
 
 
 def _lumped(co: AxialCoefficients, connector: bool) -> LumpedCoefficients:
@@ -147,10 +208,16 @@ class AxialBody(Element):
         """The value of the element's own (first) input at time ``t`` [s]; 0 by default."""
         return 0.0
 
+    def coefficient_key(self) -> Hashable | None:
+        """A hashable value that determines :meth:`terms` completely, or None (the default).  Elements with equal
+        keys share one probe of their terms (:meth:`derive_forms`): a family keys its own :meth:`terms` and the
+        data it reads, and returns None where a subclass replaces them."""
+        return None
+
     def derive_forms(self) -> None:
         """Derive the affine form once; call it last in ``__init__`` (the description is then complete
         and never changes: the verbs only read it)."""
-        self._axial = body_coefficients(self)
+        self._axial = _coefficients(self, body_coefficients)
         self._lumped = _lumped(self._axial, connector=False)
 
     def axial_coefficients(self) -> AxialCoefficients:
@@ -200,10 +267,14 @@ class AxialJoint(Element):
               u: Mapping[str, Any] | None = None) -> JointTerms:
         """The law (``S = [1]``)."""
 
+    def coefficient_key(self) -> Hashable | None:
+        """As :meth:`AxialBody.coefficient_key`: None (the default) probes every element on its own."""
+        return None
+
     def derive_forms(self) -> None:
         """Derive the affine form once; call it last in ``__init__`` (the description is then complete
         and never changes: the verbs only read it)."""
-        self._axial = joint_coefficients(self)
+        self._axial = _coefficients(self, joint_coefficients)
         self._lumped = _lumped(self._axial, connector=True)
 
     def axial_coefficients(self) -> AxialCoefficients:

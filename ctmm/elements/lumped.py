@@ -88,6 +88,13 @@ class PointElement(AxialBody):
         return BodyTerms(M=ops.block([[self.mass]]), h=h, Kin={"out": one}, c={"out": ops.zeros(1, 1)},
                          RF={"out": one})
 
+    def coefficient_key(self) -> tuple | None:
+        """:meth:`terms` reads ``mass``, ``damping``, ``stiffness`` (exact bits) and the inputs; None for a subclass
+        with its own terms."""
+        if type(self).terms is not PointElement.terms:
+            return None
+        return PointElement.terms, self.inputs, self.mass.hex(), self.damping.hex(), self.stiffness.hex()
+
     def own_load(self, t: float) -> float:
         """External force [N] of the point at time ``t`` [s]."""
         return float(self.force(t))
@@ -187,6 +194,14 @@ class Connector(AxialJoint):
         return JointTerms(S=ops.eye(1), tau=tau, tau_q=ops.block([[-self.stiffness]]),
                           tau_v=ops.block([[-self.damping]]),
                           tau_a=ops.block([[-self.inertance]]) if self.inertance else None)
+
+    def coefficient_key(self) -> tuple | None:
+        """:meth:`terms` reads ``stiffness``, ``damping``, ``free_length``, ``inertance`` (exact bits) and the inputs;
+        None for a subclass with its own terms."""
+        if type(self).terms is not Connector.terms:
+            return None
+        return (Connector.terms, self.inputs, self.stiffness.hex(), self.damping.hex(), self.free_length.hex(),
+                float(self.inertance).hex())
 
     def parameters(self) -> dict[str, Any]:
         return {"stiffness": self.stiffness, "damping": self.damping, "free_length": self.free_length}
