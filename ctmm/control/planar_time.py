@@ -208,6 +208,20 @@ class _ClosedLoop:
         self.evaluations = 0
         self.use_cache = False      # RK4 only: its first stage reuses the history's evaluation
         self._cache: tuple[float, np.ndarray, np.ndarray] | None = None
+        self._plans = [self._plan(lp) for lp in loops]
+
+    def _plan(self, lp: _Loop) -> tuple:
+        """What :meth:`loop_values` reads of loop ``lp`` at every call, resolved once: its delay [s], the rows of its
+        sensors in the real-time, recorded and delayed sensor vectors (``None`` where it is not read there), its
+        reference (or ``None``), whether it has controller states and whether it saturates."""
+        delay = lp.delay
+
+        def rows(index: dict[str, int], used: bool) -> np.ndarray | None:
+            return np.array([index[s] for s in lp.sensors], dtype=np.intp) if used else None
+
+        return (lp, delay, rows(self.now_index, delay == 0.0), rows(self.all_index, True),
+                rows(self.delayed_index, delay > 0.0), self.references.get(lp.name), lp.A.shape[0] > 0,
+                lp.loop.saturation is not None)
 
     def _refuse_input_dependent(self, loops: list[_Loop]) -> None:
         """Refuse by name what this driver cannot honour of sensors that respond to the actuators at once (cut
@@ -244,24 +258,21 @@ class _ClosedLoop:
         unless ``record``: the integrator needs only ``u``)."""
         names, sensors = (self.all_names, self.all_sensors) if record else (self.now_names, self.now_sensors)
         now = self.sensor_values(names, sensors, t, y) if names else np.zeros(0)
-        index = self.all_index if record else self.now_index
         past_by_delay: dict[float, np.ndarray] = {}
         out = []
-        for lp in self.loops:
-            y_now = float(lp.weights @ now[[index[s] for s in lp.sensors]]) if (record or lp.delay == 0.0) \
-                else math.nan
-            if lp.delay > 0.0:
-                past = past_by_delay.get(lp.delay)
+        for lp, delay, now_rows, all_rows, past_rows, ref, stateful, saturates in self._plans:
+            rows = all_rows if record else now_rows
+            y_now = float(lp.weights @ now[rows]) if rows is not None else math.nan
+            if past_rows is not None:
+                past = past_by_delay.get(delay)
                 if past is None:
-                    past = past_by_delay[lp.delay] = self.history(t - lp.delay)
-                y_then = float(lp.weights @ past[[self.delayed_index[s] for s in lp.sensors]])
+                    past = past_by_delay[delay] = self.history(t - delay)
+                y_then = float(lp.weights @ past[past_rows])
             else:
                 y_then = y_now
-            ref = self.references.get(lp.name)
-            e = y_then - (float(ref(t - lp.delay)) if ref is not None else 0.0)
-            z = y[lp.states]
-            u = lp.loop.saturate(-(float((lp.C @ z)[0]) if z.size else 0.0) - lp.D * e)
-            out.append((y_now, e, float(u)))
+            e = y_then - (float(ref(t - delay)) if ref is not None else 0.0)
+            u = -(float((lp.C @ y[lp.states])[0]) if stateful else 0.0) - lp.D * e
+            out.append((y_now, e, float(lp.loop.saturate(u) if saturates else u)))
         return out
 
     def actuator_values(self, t: float, y: np.ndarray, loop_values) -> dict[str, float]:
@@ -296,9 +307,8 @@ class _ClosedLoop:
         out[:self.n] = self.plant.position_rates(q, v)
         out[self.n:self.base] = self.plant.accelerations(q, v, t, inputs)
         for lp, (_, e, _) in zip(self.loops, loop_values):
-            z = y[lp.states]
-            if z.size:
-                out[lp.states] = lp.A @ z + lp.B[:, 0] * e
+            if lp.A.shape[0]:
+                out[lp.states] = lp.A @ y[lp.states] + lp.B[:, 0] * e
         self.evaluations += 1
         self._cache = (t, y, out)
         return out
