@@ -208,6 +208,9 @@ class _ClosedLoop:
         self.evaluations = 0
         self.use_cache = False      # RK4 only: its first stage reuses the history's evaluation
         self._cache: tuple[float, np.ndarray, np.ndarray] | None = None
+        # RK4 only: the loops' signals of the last stored row, which are those of the next step's first stage (the
+        # same t and state object, after the controllers were sampled and the history extended)
+        self._recorded: tuple[float, np.ndarray, list] | None = None
         self._plans = [self._plan(lp) for lp in loops]
 
     def _plan(self, lp: _Loop) -> tuple:
@@ -273,6 +276,8 @@ class _ClosedLoop:
             e = y_then - (float(ref(t - delay)) if ref is not None else 0.0)
             u = -(float((lp.C @ y[lp.states])[0]) if stateful else 0.0) - lp.D * e
             out.append((y_now, e, float(lp.loop.saturate(u) if saturates else u)))
+        if record and self.use_cache:
+            self._recorded = (t, y, out)
         return out
 
     def actuator_values(self, t: float, y: np.ndarray, loop_values) -> dict[str, float]:
@@ -300,7 +305,9 @@ class _ClosedLoop:
         if self.use_cache and cached is not None and cached[0] == t and cached[1] is y:
             return cached[2]
         q, v = y[:self.n], y[self.n:self.base]
-        loop_values = self.loop_values(t, y)
+        recorded = self._recorded       # a stored row's (y now, e, u): e and u are what the rate needs
+        loop_values = recorded[2] if self.use_cache and recorded is not None and recorded[0] == t \
+            and recorded[1] is y else self.loop_values(t, y)
         values = self.actuator_values(t, y, loop_values)
         inputs = self.ports.inputs(values) if values else None
         out = np.empty(self.size)
@@ -370,6 +377,7 @@ class _ClosedLoop:
         were sampled; at the last stored time: its rate only)."""
         if self.history is None:
             return
+        self._recorded = None           # the history changes: a stored row's delayed signals are not reused
         values, derivative = self._delayed_now(t, y, self.rate(t, y))
         if t > self.history.last_time:
             self.history.append(t, values, derivative)
@@ -390,7 +398,7 @@ class _ClosedLoop:
             return np.asarray(self.sensor_values(c.inputs, self.controller_sensors[i], t, y), dtype=float)
 
         if self.master.sample(step, t, measure):
-            self._cache = None          # held outputs changed: the rate at (t, y) changed too
+            self._cache = self._recorded = None     # held outputs changed: the rate at (t, y) changed too
             return True
         return False
 
