@@ -173,4 +173,4 @@ class SpatialLoopPorts(SpatialPorts):
         for name, value in cut:
             target = self.actuators[name].cut
             loads[target] = loads.get(target, 0.0) + validation.finite(f"actuator {name!r}", value)
-        return CutActuatedInputs(inputs.joint, inputs.wrenches, loads)
+        return CutActuatedInputs(inputs.joint, inputs.wrenches, checked=inputs.checked, cut_actuation=loads)

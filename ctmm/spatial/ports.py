@@ -126,7 +126,7 @@ class SpatialInputs:
 
     joint: Mapping[str, np.ndarray] = field(default_factory=dict)
     wrenches: Mapping[int, list] = field(default_factory=dict)
-    checked: bool = False
+    checked: bool = field(default=False, kw_only=True)     # by keyword: a subclass adds fields after it
 
 
 def _joint_sensor_names(joint) -> list[tuple[str, str, int, str]]:
