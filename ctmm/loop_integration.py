@@ -115,8 +115,18 @@ def projection_failure(residual: float, iterations: int) -> str:
 def compliance_condition(G: np.ndarray) -> float:
     """The condition number ``|G|_F |G^-1|_F`` [-] of the boundary compliance ``G`` checked against
     :data:`CONDITION_LIMIT` (the Frobenius one: the generated step states it on symbols; at most ``m`` times the
-    2-norm condition of an ``(m, m)`` ``G``); ``inf`` for a singular ``G``."""
-    return float(np.linalg.cond(G, "fro"))
+    2-norm condition of an ``(m, m)`` ``G``); ``inf`` for a singular ``G`` (``nan`` for a ``G`` with ``nan``
+    entries).  The same number as ``numpy.linalg.cond(G, "fro")`` (its inverse and Frobenius norms, without its
+    generic checks: it runs at every evaluation of a loop's accelerations)."""
+    G = np.asarray(G, dtype=float)
+    try:
+        with np.errstate(all="ignore"):
+            inverse = np.linalg.inv(G)
+            condition = float(np.sqrt(np.add.reduce(G * G, axis=(-2, -1)))
+                              * np.sqrt(np.add.reduce(inverse * inverse, axis=(-2, -1))))
+    except np.linalg.LinAlgError:
+        condition = float("nan")
+    return float("inf") if np.isnan(condition) and not np.isnan(G).any() else condition
 
 
 def singular_compliance(condition: float) -> str:

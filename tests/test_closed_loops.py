@@ -13,7 +13,8 @@ import math
 import numpy as np
 import pytest
 
-from ctmm.errors import ModelError
+from ctmm.errors import ModelError, SimulationError
+from ctmm.loop_integration import compliance_condition
 from ctmm.nonlinear_laws import CubicSpring
 from ctmm.planar import Fixed, NonlinearHinge, PlanarModel, RigidBody, SmoothHinge
 from ctmm.planar.closed_loops import KinematicLoopModel, CutJoint, simulate_kinematic_loops
@@ -106,6 +107,23 @@ def test_refusals_name_the_problem():
         simulate_kinematic_loops(four_bar(), [math.pi / 2, 0.5, 1.8], [0.0, 0.0, 0.0], t_final=0.1, dt=1e-3)
     with pytest.raises(ModelError, match="baumgarte"):
         KinematicLoopModel(tree, four_bar().cuts, baumgarte=-1.0)
+
+
+def test_the_condition_guard_is_numpys_frobenius_condition_and_refuses_a_folded_linkage():
+    """The guard's number (:func:`ctmm.loop_integration.compliance_condition`, computed without numpy's generic
+    checks) is ``numpy.linalg.cond(G, "fro")`` to the bit, also for singular and non-finite ``G``; the four-bar folded
+    flat (crank, coupler and rocker at one angle: the coupler and rocker aligned) is refused by name."""
+    rng = np.random.default_rng(3)
+    matrices = [rng.standard_normal((m, m)) * 10.0 ** rng.uniform(-6, 6, (m, m)) for m in (1, 2, 3, 4, 6)
+                for _ in range(40)]
+    matrices += [np.zeros((2, 2)), np.array([[1.0, 2.0], [2.0, 4.0]]), np.array([[np.nan, 0.0], [0.0, 1.0]]),
+                 np.array([[np.inf, 1.0], [1.0, 1.0]]), np.array([[1e-320, 0.0], [0.0, 1.0]])]
+    for G in matrices:
+        expected = float(np.linalg.cond(G, "fro"))
+        assert compliance_condition(G) == expected or (math.isnan(expected) and math.isnan(compliance_condition(G)))
+    assert compliance_condition(np.zeros((2, 2))) == math.inf
+    with pytest.raises(SimulationError, match="boundary compliance is singular"):
+        four_bar().solve([0.3, 0.3, 0.3], [0.2, 0.2, 0.2], 0.01)
 
 
 

@@ -166,12 +166,32 @@ class KinematicLoopModel:
         [m/s, rad/s] of every cut, stacked (2 per cut, 3 per driven cut)."""
         return self._constraints_at(self._points_at(q, qdot, t), t)
 
-    def _constraints_at(self, points: dict, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`constraints` at the tree's ``points`` (:meth:`_points_at`) of the state."""
-        phi, rate = [], []
+    def _side_points(self, points: dict) -> list:
+        """Per cut ``(parent, child)`` :meth:`CutPoints.point` (position [m], velocity [m/s], lever [m]) at the
+        tree's ``points`` (:meth:`_points_at`): evaluated once per state, read by the constraints, the cut loads and
+        the relative accelerations of :meth:`solve_loads`."""
+        sides = self.cut_points
+        return [(sides.point(points, jp, ep), sides.point(points, jc, ec)) for (jp, ep), (jc, ec) in self._points]
+
+    def _law_moments(self, points: dict) -> list:
+        """Per cut the moment [N m] of its law and torque (:meth:`CutJoint.moment`) at the tree's ``points``
+        (:meth:`_points_at`); ``None`` for a cut without one or a driven cut (its moment is a boundary unknown)."""
+        moments = []
         for cut, ((jp, ep), (jc, ec)) in zip(self.cuts, self._points):
-            pp, vp, _ = self.cut_points.point(points, jp, ep)
-            pc, vc, _ = self.cut_points.point(points, jc, ec)
+            if cut.has_moment and not cut.driven:
+                angle, rate = np.subtract(self.cut_points.angle(points, jc, ec), self.cut_points.angle(points, jp, ep))
+                moments.append(cut.moment(angle, rate, points["t"]))
+            else:
+                moments.append(None)
+        return moments
+
+    def _constraints_at(self, points: dict, t: float, side_points: list | None = None
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`constraints` at the tree's ``points`` (:meth:`_points_at`) of the state (``side_points``:
+        :meth:`_side_points` of them when the caller has them)."""
+        phi, rate = [], []
+        side_points = self._side_points(points) if side_points is None else side_points
+        for cut, ((jp, ep), (jc, ec)), ((pp, vp, _), (pc, vc, _)) in zip(self.cuts, self._points, side_points):
             phi.append(pc - pp)
             rate.append(vc - vp)
             if cut.driven:
@@ -184,7 +204,11 @@ class KinematicLoopModel:
         """``J = dPhi/dq`` (rows, n), exact: ``Phi' = J qdot + b(t)`` (``b``: the driven joints' and cuts' prescribed
         rates), ``J`` in one pass from the tree's rate maps at ``q`` (:meth:`CutPoints.rate_maps`,
         :meth:`CutPoints.point_rate_map`)."""
-        points = self._points_at(q, np.zeros(self.tree.n_coordinates), t)
+        return self._jacobian_at(self._points_at(q, np.zeros(self.tree.n_coordinates), t))
+
+    def _jacobian_at(self, points: dict) -> np.ndarray:
+        """:meth:`jacobian` at the tree's ``points`` (:meth:`_points_at`) of ``q`` and any ``qdot`` (it reads the
+        configuration only: the rate maps take zero rates of their own)."""
         maps, sides = self.cut_points.rate_maps(points), self.cut_points
         rows = []
         for cut, ((jp, ep), (jc, ec)) in zip(self.cuts, self._points):
@@ -194,24 +218,27 @@ class KinematicLoopModel:
                 rows.append((wc - wp)[None, :])
         return np.concatenate(rows)
 
-    def _cut_loads(self, points: dict, loads: np.ndarray, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
+    def _cut_loads(self, points: dict, loads: np.ndarray, inputs: ActuatorInputs | None = None,
+                   sides: tuple[list, list] | None = None) -> ActuatorInputs:
         """Cut loads ``loads`` (the unknowns, stacked as the rows of :meth:`constraints`: each cut's force, global
         axes [N], then a driven cut's moment [N m]) with the cuts' laws and torques as actuator inputs of the tree,
         added to ``inputs``: on a rigid body a force at the centre of mass with the moment of its lever; at a
         deformable body's end its frame wrench and generalised forces (virtual work;
-        :meth:`ctmm.planar.cut_points.CutPoints.add_force`).  ``points``: :meth:`_points_at`."""
+        :meth:`ctmm.planar.cut_points.CutPoints.add_force`).  ``points``: :meth:`_points_at`; ``sides``: its
+        :meth:`_side_points` and :meth:`_law_moments` when the caller has them (the unit loads of one state)."""
+        side_points, moments = (self._side_points(points), self._law_moments(points)) if sides is None else sides
         m, sides = self.tree, self.cut_points
         body_force = np.zeros((m.n_bodies, 3))
         modal = {j: np.array(v, dtype=float) for j, v in (inputs.modal_force if inputs else {}).items()}
         frame = {j: np.array(v, dtype=float) for j, v in (inputs.frame_wrench if inputs else {}).items()}
-        for k, (cut, ((jp, ep), (jc, ec))) in enumerate(zip(self.cuts, self._points)):
+        for k, (cut, ((jp, ep), (jc, ec)), ((_, _, lever_p), (_, _, lever_c)), law) in enumerate(
+                zip(self.cuts, self._points, side_points, moments)):
             force = loads[self._rows[k]:self._rows[k] + 2]
-            sides.add_force(points, jc, ec, force, body_force, modal, frame)
-            sides.add_force(points, jp, ep, -force, body_force, modal, frame)
+            sides.add_force(points, jc, ec, force, body_force, modal, frame, lever_c)
+            sides.add_force(points, jp, ep, -force, body_force, modal, frame, lever_p)
             if not cut.has_moment and not cut.driven:
                 continue
-            angle, rate = np.subtract(sides.angle(points, jc, ec), sides.angle(points, jp, ep))
-            tau = loads[self._rows[k] + 2] if cut.driven else cut.moment(angle, rate, points["t"])
+            tau = loads[self._rows[k] + 2] if cut.driven else law
             sides.add_moment(jc, ec, tau, body_force, modal, frame)
             sides.add_moment(jp, ep, -tau, body_force, modal, frame)
         if inputs is None:
@@ -239,14 +266,16 @@ class KinematicLoopModel:
         q, qdot = self.tree.state(q, qdot)
         return self._cut_loads(self._points_at(q, qdot, t), self.solve_loads(q, qdot, t, inputs)[1], inputs)
 
-    def _relative(self, solution, points: dict, t: float) -> np.ndarray:
+    def _relative(self, solution, points: dict, t: float, side_points: list) -> np.ndarray:
         """``Phi''`` of the cuts (relative accelerations of their sides; a driven cut also its angle's, less the
-        drive's) in the tree ``solution`` (``points``: :meth:`_points_at` at its state)."""
+        drive's) in the tree ``solution`` (``points``: :meth:`_points_at` at its state, ``side_points`` their
+        :meth:`_side_points`)."""
         sides = self.cut_points
         A, qdd = solution.body_acceleration, solution.qddot
         relative = []
-        for cut, ((jp, ep), (jc, ec)) in zip(self.cuts, self._points):
-            relative.append(sides.acceleration(points, A, qdd, jc, ec) - sides.acceleration(points, A, qdd, jp, ep))
+        for cut, ((jp, ep), (jc, ec)), ((_, _, lever_p), (_, _, lever_c)) in zip(self.cuts, self._points, side_points):
+            relative.append(sides.acceleration(points, A, qdd, jc, ec, lever_c)
+                            - sides.acceleration(points, A, qdd, jp, ep, lever_p))
             if cut.driven:      # angular accelerations of the sides (a deformable end: plus its slope's)
                 relative.append([sides.angular_acceleration(A, qdd, jc, ec) - sides.angular_acceleration(A, qdd, jp, ep)
                                  - float(cut.angle_acceleration(t))])
@@ -274,13 +303,15 @@ class KinematicLoopModel:
         """``(qddot, cut loads)``: the boundary unknowns stacked as the rows of :meth:`constraints` (each cut's
         force [N], a driven cut's moment [N m] after it) solved from ``G lambda = -a_0 - 2 alpha Phi' - alpha^2 Phi``."""
         points = self._points_at(q, qdot, t)
+        side_points = self._side_points(points)         # the sides' kinematics and laws once for every unit load
+        sides = (side_points, self._law_moments(points))
         loads = np.vstack([np.zeros(self._rows[-1]), np.eye(self._rows[-1])])   # none, then each unit load
-        solutions = solve_instant_inputs(self.tree, q, qdot, t, [self._cut_loads(points, load, inputs)
+        solutions = solve_instant_inputs(self.tree, q, qdot, t, [self._cut_loads(points, load, inputs, sides)
                                                                   for load in loads])   # the tree's terms once
-        qdd0, a0 = solutions[0].qddot, self._relative(solutions[0], points, t)
-        G = np.column_stack([self._relative(solution, points, t) - a0 for solution in solutions[1:]])
+        qdd0, a0 = solutions[0].qddot, self._relative(solutions[0], points, t, side_points)
+        G = np.column_stack([self._relative(solution, points, t, side_points) - a0 for solution in solutions[1:]])
         dqdd = np.column_stack([solution.qddot - qdd0 for solution in solutions[1:]])
-        phi, phi_dot = self._constraints_at(points, t)
+        phi, phi_dot = self._constraints_at(points, t, side_points)
         alpha = self.baumgarte
         target = -a0 - 2.0 * alpha * phi_dot - alpha * alpha * phi
         condition = compliance_condition(G)
@@ -319,14 +350,22 @@ class KinematicLoopModel:
     def project_rows(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0, iterations: int = 3,
                      rows: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`project` and ``Phi`` [m, rad] at its result; ``rows``: :meth:`constraints` at ``(q, qdot, t)``
-        when the caller has them (each evaluation of the constraints serves the step it is needed for)."""
-        phi, rate = self.constraints(q, qdot, t) if rows is None else rows
+        when the caller has them (each evaluation of the constraints serves the step it is needed for; the tree's
+        points of each configuration serve its constraints and its Jacobian)."""
+        points = None                                   # the tree's points at (q, qdot, t) once evaluated
+        if rows is None:
+            points = self._points_at(q, qdot, t)
+            rows = self._constraints_at(points, t)
+        phi, rate = rows
         for _ in range(iterations):
             if np.max(np.abs(phi)) < PROJECTION_SKIP:
                 break
-            q = q - np.linalg.lstsq(self.jacobian(q, t), phi, rcond=None)[0]
-            phi, rate = self.constraints(q, qdot, t)
-        return q, qdot - np.linalg.lstsq(self.jacobian(q, t), rate, rcond=None)[0], phi
+            points = self._points_at(q, qdot, t) if points is None else points
+            q = q - np.linalg.lstsq(self._jacobian_at(points), phi, rcond=None)[0]
+            points = self._points_at(q, qdot, t)
+            phi, rate = self._constraints_at(points, t)
+        points = self._points_at(q, qdot, t) if points is None else points
+        return q, qdot - np.linalg.lstsq(self._jacobian_at(points), rate, rcond=None)[0], phi
 
     # -- linearisation on the constraint manifold (the algorithm: :mod:`ctmm.loop_manifold`) -----------
     def require_static(self, what: str) -> int:

@@ -225,14 +225,15 @@ class CutPoints:
         rate[index] += self.end_slope(j, e)
         return velocity, rate
 
-    def acceleration(self, points: dict, A: np.ndarray, qddot: np.ndarray, j: int, e: np.ndarray | int
-                     ) -> np.ndarray:
+    def acceleration(self, points: dict, A: np.ndarray, qddot: np.ndarray, j: int, e: np.ndarray | int,
+                     lever: np.ndarray | None = None) -> np.ndarray:
         """Acceleration [m/s^2] of a side from the sweep's body accelerations ``A`` (inboard ends, ``(a_x, a_y,
         alpha)``) and ``qddot``: ``a_in + alpha k x r - omega^2 r`` and, at a deformable end,
-        ``2 omega k x (R v_loc) + R a_loc``."""
+        ``2 omega k x (R v_loc) + R a_loc``; ``lever``: its ``r`` from :meth:`point` at ``points`` when the caller
+        has it."""
         if j < 0:
             return np.zeros(2)
-        _, _, r = self.point(points, j, e)
+        r = self.point(points, j, e)[2] if lever is None else lever
         om, al = points["omega"][j], A[j, 2]
         acc = A[j, :2] + al * np.array([-r[1], r[0]]) - om * om * r
         if not isinstance(e, np.ndarray):
@@ -264,10 +265,11 @@ class CutPoints:
 
     # -- loads -------------------------------------------------------------------------------------
     def add_force(self, points: dict, j: int, e: np.ndarray | int, force: np.ndarray, body_force: np.ndarray,
-                  modal: dict, frame: dict) -> None:
+                  modal: dict, frame: dict, lever: np.ndarray | None = None) -> None:
         """Add the force ``force`` (global axes [N]) on a side to the tree's loads, in place: ``body_force``
         (n_bodies, 3) at the centres of mass, ``modal`` / ``frame`` the generalised forces and frame wrenches of
-        deformable bodies by index (module docstring)."""
+        deformable bodies by index (module docstring); ``lever``: the side's ``r`` from :meth:`point` at ``points``
+        when the caller has it."""
         if j < 0:
             return
         m, th = self.tree, points["theta"][j]
@@ -282,7 +284,7 @@ class CutPoints:
                 generalised[:data.nq] -= fx * (data.end_G1[e] @ points["q"][m.modal_index[j][:data.nq]])
             modal[j] = modal.get(j, np.zeros(len(m.modal_index[j]))) + generalised
             return
-        _, _, r = self.point(points, j, e)
+        r = self.point(points, j, e)[2] if lever is None else lever
         arm = r - _turn(th, m.com[j])
         body_force[j] += (force[0], force[1], arm[0] * force[1] - arm[1] * force[0])
 
