@@ -24,7 +24,7 @@ import numpy as np
 
 _SCALARS = (int, float, complex, np.number)
 
-__all__ = ["Ops", "NumpyOps", "CasadiOps", "NUMPY", "CASADI", "batch_scalars", "batch_column"]
+__all__ = ["Ops", "NumpyOps", "CasadiOps", "NUMPY", "CASADI", "batch_scalars", "batch_column", "batch_shape"]
 
 
 class Ops(Protocol):
@@ -275,3 +275,19 @@ def batch_column(values: Any) -> np.ndarray:
     if values.ndim == 1:
         values = values[None]
     return values[:, :, None]
+
+
+def batch_shape(*arrays: np.ndarray) -> tuple[int, ...]:
+    """The broadcast leading shape of numpy ops values (their shapes without the last two axes): the result of
+    ``np.broadcast_shapes`` on those, without its cost (about 5 us a call) for the usual leads ``(B,)`` and ``(1,)``
+    (incompatible leads: ``np.broadcast_shapes``'s ``ValueError``)."""
+    first = arrays[0].shape[:-2]
+    leads = [a.shape[:-2] for a in arrays]
+    if all(lead == first for lead in leads):
+        return first
+    if all(len(lead) == 1 for lead in leads):
+        sizes = {lead[0] for lead in leads} - {1}
+        if len(sizes) == 1:
+            return (sizes.pop(),)
+    return np.broadcast_shapes(*leads)
+

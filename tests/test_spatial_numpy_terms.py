@@ -87,3 +87,67 @@ def test_modal_beam_numpy_path_with_stacked_loads_equals_the_ops_statement():
         _compare(terms, reference, k)
         for field in ("arm", "velocity", "rotation", "omega"):
             _close(getattr(frames["tip"], field), getattr(reference_frames["tip"], field), k, f"tip {field}")
+
+
+def _joints():
+    """Spherical (with and without its law), free and elastic joints, one actuated, with a 6 x 6 law."""
+    import ctmm.spatial as sp
+
+    law6 = np.diag([2.0e4, 1.5e4, 1.0e4, 40.0, 55.0, 30.0])
+    law6[3, 4] = law6[4, 3] = 3.0
+    common = dict(parent=None, child="b")
+    return [sp.Spherical(name="ball", **common), sp.Spherical(name="sprung", stiffness=[2.0, 3.0, 4.0], damping=0.1,
+                                                              actuated=True, **common),
+            sp.Free(name="free", **common), sp.Free(name="pushed", actuated=True, **common),
+            sp.Elastic6(name="hinge", stiffness=law6, damping=np.diag([5.0, 5.0, 5.0, 0.2, 0.3, 0.1]), **common),
+            sp.Elastic6(name="driven", stiffness=law6, actuated=True, **common)]
+
+
+def test_joint_motion_numpy_path_equals_the_ops_statement():
+    """The filled numpy path of spherical, free and elastic joints (law, input, prescribed acceleration; a batch of
+    three states, its quaternions not unit; real and complex-step values) against the casadi statement per state."""
+    from ctmm.spatial.joint_kinematics import joint_motion
+
+    batch = 3
+    for joint in _joints():
+        nq, nv = joint.coordinate_count, joint.velocity_count
+        for dtype in (float, complex):
+            q = RNG.normal(size=(batch, nq)) * 0.4 + np.r_[np.zeros(nq - 4), 1.0, 0.0, 0.0, 0.0]
+            v = RNG.normal(size=(batch, nv)).astype(dtype)
+            if dtype is complex:
+                q = q + 1e-20j * RNG.normal(size=q.shape)
+            u = RNG.normal(size=(batch, nv, 1)) if joint.inputs else None
+            for acceleration in (None, RNG.normal(size=(batch, nv))):
+                rows = [q[:, k].reshape(-1, 1, 1) for k in range(nq)]
+                rates = [v[:, k].reshape(-1, 1, 1) for k in range(nv)]
+                prescribed = None if acceleration is None else [acceleration[:, k].reshape(-1, 1, 1) for k in range(nv)]
+                motion = joint_motion(NUMPY, joint, rows, rates, u, prescribed)
+                for k in range(batch):
+                    reference = joint_motion(CASADI, joint, [casadi.DM(q[k, i].real) for i in range(nq)],
+                                             [casadi.DM(v[k, i].real) for i in range(nv)],
+                                             None if u is None else casadi.DM(u[k]),
+                                             None if acceleration is None else [casadi.DM(a) for a in acceleration[k]])
+                    for field in ("rotation", "translation", "S", "bias", "linear", "angular", "tau", "tau_q", "tau_v",
+                                  "prescribed"):
+                        got, expected = getattr(motion, field), getattr(reference, field)
+                        assert (got is None) == (expected is None), (joint.name, field)
+                        if got is not None:
+                            _close(np.real(got), expected, k, f"{joint.name} {field}")
+                            if field in ("rotation", "S", "angular"):          # complex steps kept
+                                assert np.result_type(got) == np.result_type(dtype), (joint.name, field)
+
+
+def test_batch_shape_is_numpys_broadcast_of_the_leads():
+    """:func:`ctmm.ops.batch_shape` (the fills' allocation) against ``np.broadcast_shapes`` of the leading shapes,
+    and its refusal of leads that do not broadcast."""
+    import pytest
+
+    from ctmm.ops import batch_shape
+
+    cases = [[(1, 3, 3), (4, 3, 1)], [(4, 3, 3), (4, 6, 1)], [(1, 3, 3), (1, 2, 2)], [(4, 3, 3), (1, 3, 3), (4, 1, 1)],
+             [(3, 3), (2, 3, 3)], [(2, 5, 3, 3), (5, 3, 1)], [(3, 3), (3, 1)]]
+    for shapes in cases:
+        arrays = [np.zeros(shape) for shape in shapes]
+        assert batch_shape(*arrays) == np.broadcast_shapes(*(shape[:-2] for shape in shapes)), shapes
+    with pytest.raises(ValueError):
+        batch_shape(np.zeros((2, 3, 3)), np.zeros((3, 3, 3)))

@@ -54,7 +54,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..ops import NUMPY, Ops
+from ..ops import NUMPY, Ops, batch_shape
 from ..protocol import BodyTerms
 from .beam_second_order import second_order_deltas
 from .frames import axis_rotation, block_diagonal, column, constant, cross, entry, skew
@@ -210,7 +210,7 @@ def _point_map(ops: Ops, rho: Any, Phi_u: Any, ThetaLam: Any) -> Any:
     """``K_b = [[I, -[rho]x, Phi_u], [0, I, Theta Lambda]]`` (6 x (6 + n)) of a beam point, frame axes."""
     if ops.name == "numpy":                        # the same entries filled into one allocation
         n = ThetaLam.shape[-1]
-        K = np.zeros(np.broadcast_shapes(rho.shape[:-2], Phi_u.shape[:-2], ThetaLam.shape[:-2]) + (6, 6 + n),
+        K = np.zeros(batch_shape(rho, Phi_u, ThetaLam) + (6, 6 + n),
                      dtype=np.result_type(rho, Phi_u, ThetaLam))
         K[..., _DIAGONAL6, _DIAGONAL6] = 1.0
         K[..., :3, 3:6] = skew(ops, rho) * -1.0
@@ -372,7 +372,7 @@ def _numpy_body(data: Any, k: Mapping[str, np.ndarray], w: Any, g: Any, qv: Any,
         h_mod = h_mod + np.matmul(k["G2"], eta) * (g[..., :1, :1] * rhoA + qv[..., :1, :1]) + np.matmul(
             k["G3"], eta) * ((w[..., 1:2, :1] * w[..., 1:2, :1] + w[..., 2:3, :1] * w[..., 2:3, :1]) * rhoA)
         modal_left = modal_left - np.matmul(np.matmul(k["stiff"], eta), e1.swapaxes(-1, -2))
-    upper = np.broadcast_shapes(J.shape[:-2], Gamma.shape[:-2], s_x.shape[:-2], modal_left.shape[:-2])
+    upper = batch_shape(J, Gamma, s_x, modal_left)
     M_b = np.empty(upper + (6 + n, 6 + n), dtype=np.result_type(J, Gamma, s_x, modal_left))
     M_b[..., :3, :3] = k["mass"]
     M_b[..., :3, 3:6] = -s_x
@@ -389,7 +389,7 @@ def _numpy_body(data: Any, k: Mapping[str, np.ndarray], w: Any, g: Any, qv: Any,
 def _join(parts: Sequence[np.ndarray], axis: int) -> np.ndarray:
     """Numpy batches joined along ``axis`` (-1 or -2), their batch axes broadcast when they differ."""
     if len({part.shape[:-2] for part in parts}) > 1:
-        parts = [np.broadcast_to(part, np.broadcast_shapes(*(p.shape[:-2] for p in parts)) + part.shape[-2:])
+        parts = [np.broadcast_to(part, batch_shape(*parts) + part.shape[-2:])
                  for part in parts]
     return np.concatenate(parts, axis=axis)
 

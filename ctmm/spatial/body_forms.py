@@ -14,21 +14,22 @@ translation has carried to ``P``), so that ``A_child = A_parent(P) + S a_rel + c
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache, partial
+from functools import partial
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from ..articulated import Articulated, Tree, articulated_sweep
 from ..errors import ModelError
-from ..ops import NUMPY, Ops, batch_column, batch_scalars
+from ..ops import NUMPY, Ops, batch_column, batch_scalars, batch_shape
 from ..protocol import BodyTerms, JointTerms
-from .frames import axis_rotation, block_diagonal, column, constant, cross, entry, quaternion_rotation, skew
+from .frames import block_diagonal, constant, cross, skew
+from .joint_kinematics import JointMotion, joint_motion
 from .beam_terms import spatial_beam_terms
 from .model import SpatialModel, input_values
 from ..signals import signal_parameters, symbolic_signal
 
-__all__ = ["rigid_body_terms", "JointMotion", "joint_motion", "SpatialScene", "BodyState", "ChildMotion", "child_motion"]
+__all__ = ["rigid_body_terms", "SpatialScene", "BodyState", "ChildMotion", "child_motion"]
 
 
 def rigid_body_terms(ops: Ops, *, mass: float, inertia: np.ndarray, center_of_mass: np.ndarray,
@@ -112,7 +113,7 @@ def _numpy_rigid_body_terms(mass: float, inertia: np.ndarray, center_of_mass: np
     inertia_world = np.matmul(np.matmul(rotation, np.asarray(inertia, dtype=float)), rotation.swapaxes(-1, -2))
     rc_x = skew(NUMPY, r_c)
     lower = inertia_world - np.matmul(rc_x, rc_x) * mass
-    M = np.empty(np.broadcast_shapes(rc_x.shape[:-2], lower.shape[:-2]) + (6, 6), dtype=lower.dtype)
+    M = np.empty(batch_shape(rc_x, lower) + (6, 6), dtype=lower.dtype)
     M[..., :3, :3] = _EYE3 * mass
     M[..., :3, 3:] = rc_x * -mass
     M[..., 3:, :3] = rc_x * mass
@@ -128,7 +129,7 @@ def _numpy_rigid_body_terms(mass: float, inertia: np.ndarray, center_of_mass: np
         f = wrench[..., 0:3, 0:1]
         h_lin = h_lin - f
         h_ang = h_ang - wrench[..., 3:6, 0:1] - cross(NUMPY, located(point), f)
-    h = np.empty(np.broadcast_shapes(h_lin.shape[:-2], h_ang.shape[:-2]) + (6, 1),
+    h = np.empty(batch_shape(h_lin, h_ang) + (6, 1),
                  dtype=np.result_type(h_lin, h_ang))
     h[..., :3, :] = h_lin
     h[..., 3:, :] = h_ang
@@ -150,144 +151,6 @@ def _numpy_rigid_body_terms(mass: float, inertia: np.ndarray, center_of_mass: np
 
 _EYE3 = np.eye(3)
 _DIAGONAL6 = np.arange(6)
-
-
-@dataclass(frozen=True)
-class JointMotion:
-    """Relative motion of a joint in its joint frame (ops values; ``None`` for zero).
-
-    Attributes
-    ----------
-    rotation : (3, 3)
-        Child axes relative to the joint frame ``R_rel``.
-    translation : (3, 1) or None
-        Child origin in the joint frame [m].
-    S : (6, k)
-        Relative twist ``[u ; w]`` of the inboard point per unit ``v`` (joint frame).
-    bias : (6, 1) or None
-        ``S_dot v`` seen in the joint frame (relative acceleration at ``v_dot = 0``).
-    linear : (3, 1) or None
-        ``u``: velocity of the inboard point relative to the parent [m/s].
-    angular : (3, 1) or None
-        ``w``: relative angular velocity [rad/s].
-    tau, tau_q, tau_v, prescribed
-        As in :class:`~ctmm.protocol.JointTerms`.
-    """
-
-    rotation: Any
-    translation: Any
-    S: Any
-    bias: Any
-    linear: Any
-    angular: Any
-    tau: Any = None
-    tau_q: Any = None
-    tau_v: Any = None
-    prescribed: Any = None
-
-
-def _axis_columns(ops: Ops, axis: Any, start: int) -> tuple[Any, Any]:
-    """``(a, S)``: a joint axis as an ops column and its unit twist ``S`` (6 x 1) with the axis in rows
-    ``start:start + 3`` (numpy constants read-only, shared by the calls with that axis)."""
-    return _axis_constants(ops, tuple(np.asarray(axis, dtype=float).reshape(3).tolist()), start)
-
-
-@lru_cache(maxsize=256)
-def _axis_constants(ops: Ops, axis: tuple[float, float, float], start: int) -> tuple[Any, Any]:
-    twist = np.zeros(6)
-    twist[start:start + 3] = axis
-    out = (constant(ops, axis), constant(ops, twist))
-    if ops.name == "numpy":
-        for value in out:
-            value.flags.writeable = False
-    return out
-
-
-def _law(ops: Ops, joint, q: list, v: list, u: Any) -> tuple[Any, Any, Any]:
-    """``tau = u - k (q - q_ref) - c v`` of a 1- or 2-DOF joint, with its tangents."""
-    k, c, ref = joint.stiffness, joint.damping, joint.reference
-    law = getattr(joint, "law", None)
-    if not (np.any(k) or np.any(c)) and u is None and law is None:
-        return None, None, None
-    terms = [q[i] * -k[i] + k[i] * ref[i] - v[i] * c[i] for i in range(len(v))]
-    tau_q, tau_v = constant(ops, -np.diag(k)), constant(ops, -np.diag(c))
-    if law is not None:                     # nonlinear law per coordinate, its tangents on the diagonal
-        tangents = [law.tangents(q[i] - ref[i], v[i]) for i in range(len(v))]
-        terms = [terms[i] - law.force(q[i] - ref[i], v[i]) for i in range(len(v))]
-        n = len(v)
-        tau_q = tau_q + ops.block([[-tangents[i][0] if i == j else 0.0 for j in range(n)] for i in range(n)])
-        tau_v = tau_v + ops.block([[-tangents[i][1] if i == j else 0.0 for j in range(n)] for i in range(n)])
-    tau = column(ops, terms)
-    if u is not None:
-        tau = tau + u
-    return tau, tau_q, tau_v
-
-
-def joint_motion(ops: Ops, joint, q: list, v: list, u: Any = None, acceleration: list | None = None) -> JointMotion:
-    """Relative kinematics and law of one joint from its coordinates ``q`` and velocities ``v`` (lists of
-    ops scalars), actuator input ``u`` (ops column or ``None``) and, for a driven joint, its prescribed
-    ``acceleration`` (list of ops scalars)."""
-    kind = joint.kind
-    zero3 = ops.zeros(3, 1)
-    if kind == "weld":
-        return JointMotion(ops.eye(3), None, ops.zeros(6, 0), None, None, None)
-    if kind == "revolute":
-        a, S = _axis_columns(ops, joint.axis, 3)
-        motion = dict(rotation=axis_rotation(ops, joint.axis, q[0]), translation=None,
-                      S=S, bias=None, linear=None, angular=a * v[0])
-    elif kind == "prismatic":
-        a, S = _axis_columns(ops, joint.axis, 0)
-        motion = dict(rotation=ops.eye(3), translation=a * q[0], S=S, bias=None, linear=a * v[0], angular=None)
-    elif kind == "universal":
-        first = axis_rotation(ops, joint.axis1, q[0])
-        a1 = constant(ops, joint.axis1)
-        s2 = ops.matmul(first, constant(ops, joint.axis2))
-        motion = dict(rotation=ops.matmul(first, axis_rotation(ops, joint.axis2, q[1])), translation=None,
-                      S=ops.block([[ops.zeros(3, 2)], [ops.block([[a1, s2]])]]),
-                      bias=ops.block([[zero3], [cross(ops, a1, s2) * (v[0] * v[1])]]), linear=None,
-                      angular=a1 * v[0] + s2 * v[1])
-    elif kind == "spherical":
-        R = quaternion_rotation(ops, *q)
-        omega = column(ops, v)
-        motion = dict(rotation=R, translation=None, S=ops.block([[ops.zeros(3, 3)], [R]]), bias=None, linear=None,
-                      angular=ops.matmul(R, omega))
-    elif kind in ("free", "elastic6"):
-        R = quaternion_rotation(ops, *q[3:])
-        t = column(ops, q[:3])
-        w = ops.matmul(R, column(ops, v[3:]))
-        linear = ops.matmul(R, column(ops, v[:3])) - cross(ops, w, t)
-        motion = dict(rotation=R, translation=t,
-                      S=ops.block([[R, ops.matmul(skew(ops, t), R)], [ops.zeros(3, 3), R]]),
-                      bias=ops.block([[cross(ops, w, linear)], [zero3]]), linear=linear, angular=w)
-    else:                                       # pragma: no cover - guarded by the model
-        raise AssertionError(kind)
-    if acceleration is not None:
-        return JointMotion(**motion, prescribed=column(ops, acceleration))
-    tau = tau_q = tau_v = None
-    if kind in ("revolute", "prismatic", "universal"):
-        tau, tau_q, tau_v = _law(ops, joint, q, v, u)
-    elif kind == "spherical":
-        w0, x, y, z = q
-        n2 = w0 * w0 + x * x + y * y + z * z
-        s = column(ops, [w0 * x * 2.0 / n2, w0 * y * 2.0 / n2, w0 * z * 2.0 / n2])
-        if np.any(joint.stiffness) or np.any(joint.damping) or u is not None:
-            tau = (ops.matmul(constant(ops, joint.stiffness), s) + ops.matmul(constant(ops, joint.damping),
-                                                                               column(ops, v))) * -1.0
-            tau = tau if u is None else tau + u
-            tau_q, tau_v = constant(ops, -joint.stiffness), constant(ops, -joint.damping)
-    else:
-        if kind == "elastic6":
-            w0, x, y, z = q[3:]
-            n2 = w0 * w0 + x * x + y * y + z * z
-            R = motion["rotation"]
-            e = ops.block([[ops.matmul(ops.transpose(R), motion["translation"])],
-                           [column(ops, [w0 * x * 2.0 / n2, w0 * y * 2.0 / n2, w0 * z * 2.0 / n2])]])
-            tau = (ops.matmul(constant(ops, joint.stiffness), e) + ops.matmul(constant(ops, joint.damping),
-                                                                               column(ops, v))) * -1.0
-            tau_q, tau_v = constant(ops, -joint.stiffness), constant(ops, -joint.damping)
-        if u is not None:
-            tau = u if tau is None else tau + u
-    return JointMotion(**motion, tau=tau, tau_q=tau_q, tau_v=tau_v)
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..ops import Ops
+from ..ops import Ops, batch_shape
 
 __all__ = ["constant", "entry", "column", "skew", "cross", "axis_rotation", "quaternion_rotation",
            "quaternion_rate", "block_diagonal"]
@@ -91,21 +91,22 @@ def _axis_terms(ops: Ops, axis: tuple[float, float, float]) -> tuple[Any, Any, A
 
 def quaternion_rotation(ops: Ops, w: Any, x: Any, y: Any, z: Any) -> Any:
     """Rotation matrix of the quaternion ``(w, x, y, z)`` divided by its norm (any non-zero quaternion)."""
-    n2 = w * w + x * x + y * y + z * z
     if ops.name == "numpy":
-        parts = (w, x, y, z, n2)
-        if all(type(c) is np.ndarray and c.shape == (1, 1, 1) and c.dtype == np.float64 for c in parts):
-            w, x, y, z, n2 = (c.item() for c in parts)              # one state: the same operations on floats
+        if all(type(c) is np.ndarray and c.shape == (1, 1, 1) and c.dtype == np.float64 for c in (w, x, y, z)):
+            w, x, y, z = (c.item() for c in (w, x, y, z))          # one state: the same operations on floats
+            n2 = w * w + x * x + y * y + z * z
             R = np.array(((w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)),
                           (2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)),
                           (2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z)))
             return (R / n2).reshape(1, 3, 3)
+        n2 = w * w + x * x + y * y + z * z
         w, x, y, z = np.broadcast_arrays(*(np.asarray(c)[:, 0, 0] for c in (w, x, y, z)))
         n2 = np.asarray(n2)[:, 0, 0]
         R = np.stack([np.stack([w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
                       np.stack([2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)], -1),
                       np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z], -1)], -2)
         return R / np.broadcast_to(n2, w.shape)[:, None, None]
+    n2 = w * w + x * x + y * y + z * z
     rows = [[w * w + x * x - y * y - z * z, (x * y - w * z) * 2.0, (x * z + w * y) * 2.0],
             [(x * y + w * z) * 2.0, w * w - x * x + y * y - z * z, (y * z - w * x) * 2.0],
             [(x * z - w * y) * 2.0, (y * z + w * x) * 2.0, w * w - x * x - y * y + z * z]]
@@ -125,7 +126,7 @@ def block_diagonal(ops: Ops, a: Any, b: Any, rows_a: int, rows_b: int) -> Any:
     """``diag(a, b)`` of two square blocks of sizes ``rows_a``, ``rows_b``."""
     if ops.name == "numpy":                     # the same matrix filled into one allocation
         a, b = np.asarray(a), np.asarray(b)
-        out = np.zeros(np.broadcast_shapes(a.shape[:-2], b.shape[:-2]) + (rows_a + rows_b,) * 2,
+        out = np.zeros(batch_shape(a, b) + (rows_a + rows_b,) * 2,
                        dtype=np.result_type(a, b))
         out[..., :rows_a, :rows_a] = a
         out[..., rows_a:, rows_a:] = b
