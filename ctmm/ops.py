@@ -134,8 +134,13 @@ class NumpyOps:
             return (out if out.dtype.kind in "fc" else out.astype(float))[None]
         if len(rows) == 1:
             parts, axis = rows[0], -1
-        elif all(len(row) == 1 for row in rows):
-            parts, axis = [row[0] for row in rows], -2
+        elif len(rows[0]) == 1:                     # a column (plain loop: no generator frame per call)
+            parts, axis = [], -2
+            for row in rows:
+                if len(row) != 1:
+                    parts = None
+                    break
+                parts.append(row[0])
         else:
             parts = None
         if parts:                                   # one row or column of equal-kind arrays: concatenate

@@ -67,6 +67,14 @@ def test_a_grid_of_numbers_is_one_float_or_complex_constant():
     np.testing.assert_array_equal(mixed[:, 0, 0], np.full(4, x))
 
 
+def test_a_column_of_arrays_is_concatenated_and_a_grid_is_not_a_column():
+    top, bottom = RNG.normal(size=(1, 3, 1)), RNG.normal(size=(1, 2, 1))
+    np.testing.assert_array_equal(NUMPY.block([[top], [bottom]]), np.concatenate([top, bottom], axis=1))
+    # rows of two entries: a grid, not a column
+    a, b, c = (RNG.normal(size=(1, 1, 1)) for _ in range(3))
+    np.testing.assert_array_equal(NUMPY.block([[a, b], [c, a]]), np.block([[a, b], [c, a]]))
+
+
 @pytest.mark.parametrize("batch", [1, 5])
 def test_cross_and_skew_are_the_cross_product(batch):
     for dtype in (float, complex):
