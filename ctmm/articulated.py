@@ -67,27 +67,31 @@ def _solve(ops: Ops, a: Any, b: Any, body: int, what: str) -> Any:
 def _product(ops: Ops, a: Any, b: Any) -> Any:
     """``ops.matmul(a, b)``; on numpy a constant factor (``B = 1``) times a batch is one 2-D product (numpy's
     batched product of small matrices costs a BLAS call per matrix)."""
-    if type(a) is np.ndarray and type(b) is np.ndarray and a.ndim == 3 == b.ndim:
-        if a.shape[0] == 1 < b.shape[0]:                # (b^T a^T)^T
-            batch, inner, columns = b.shape
-            flat = b.swapaxes(1, 2).reshape(batch * columns, inner)
-            return (flat @ a[0].T).reshape(batch, columns, -1).swapaxes(1, 2)
-        if b.shape[0] == 1 < a.shape[0]:
-            batch, rows, inner = a.shape
-            return (a.reshape(batch * rows, inner) @ b[0]).reshape(batch, rows, -1)
+    if type(a) is np.ndarray and type(b) is np.ndarray:
+        if a.ndim == 3 == b.ndim:
+            if a.shape[0] == 1 < b.shape[0]:            # (b^T a^T)^T
+                batch, inner, columns = b.shape
+                flat = b.swapaxes(1, 2).reshape(batch * columns, inner)
+                return (flat @ a[0].T).reshape(batch, columns, -1).swapaxes(1, 2)
+            if b.shape[0] == 1 < a.shape[0]:
+                batch, rows, inner = a.shape
+                return (a.reshape(batch * rows, inner) @ b[0]).reshape(batch, rows, -1)
+        return a @ b                                    # np.matmul without the ops dispatch
     return ops.matmul(a, b)
 
 
 def _congruence(ops: Ops, left: Any, middle: Any, right: Any) -> Any:
     """``left middle right``; on numpy with constant ``left, right`` (``B = 1``) and a batched ``middle`` one 2-D
     product of the flattened ``middle`` with ``kron(left^T, right)``."""
-    if (type(middle) is np.ndarray and type(left) is np.ndarray and type(right) is np.ndarray and middle.ndim == 3
-            and left.shape[0] == 1 == right.shape[0] < middle.shape[0]):
-        rows, inner = left.shape[1:]
-        columns = right.shape[2]
-        kron = left[0].T[:, None, :, None] * right[0][None, :, None, :]     # kron(left^T, right)
-        kron = kron.reshape(inner * right.shape[1], rows * columns)
-        return (middle.reshape(middle.shape[0], -1) @ kron).reshape(-1, rows, columns)
+    if type(middle) is np.ndarray and type(left) is np.ndarray and type(right) is np.ndarray:
+        if middle.ndim == 3 and left.shape[0] == 1 == right.shape[0] < middle.shape[0]:
+            rows, inner = left.shape[1:]
+            columns = right.shape[2]
+            kron = left[0].T[:, None, :, None] * right[0][None, :, None, :]     # kron(left^T, right)
+            kron = kron.reshape(inner * right.shape[1], rows * columns)
+            return (middle.reshape(middle.shape[0], -1) @ kron).reshape(-1, rows, columns)
+        if left.shape[:-2] == middle.shape[:-2] == right.shape[:-2]:    # one batch (or 2-D): two plain products
+            return left @ middle @ right
     return _product(ops, _product(ops, left, middle), right)
 
 

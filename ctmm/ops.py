@@ -78,6 +78,15 @@ def _tiling(rows: Sequence[Sequence[Any]]) -> tuple[list[int], list[int], bool] 
     return heights, widths, uniform
 
 
+def _numbers_only(rows: Sequence[Sequence[Any]]) -> bool:
+    """Whether every entry of a grid is a Python or numpy number (plain loops: no generator frame per call)."""
+    for row in rows:
+        for entry in row:
+            if not isinstance(entry, _SCALARS):
+                return False
+    return True
+
+
 def _assembled(grid: Sequence[Sequence[Any]], heights: Sequence[int], widths: Sequence[int], batch: int | None = None,
                batched: bool = True) -> np.ndarray:
     """One allocation of the matrix of ``grid`` (row ``heights``, column ``widths``), one broadcasting assignment
@@ -120,10 +129,18 @@ class NumpyOps:
     exp = staticmethod(np.exp)
 
     def block(self, rows: Sequence[Sequence[Any]]) -> np.ndarray:
+        if type(rows[0][0]) is not np.ndarray and _numbers_only(rows):   # numbers only: one call, B = 1
+            out = np.array(rows)
+            return (out if out.dtype.kind in "fc" else out.astype(float))[None]
         if len(rows) == 1:
             parts, axis = rows[0], -1
-        elif all(len(row) == 1 for row in rows):
-            parts, axis = [row[0] for row in rows], -2
+        elif len(rows[0]) == 1:                     # a column (plain loop: no generator frame per call)
+            parts, axis = [], -2
+            for row in rows:
+                if len(row) != 1:
+                    parts = None
+                    break
+                parts.append(row[0])
         else:
             parts = None
         if parts:                                   # one row or column of equal-kind arrays: concatenate
@@ -141,9 +158,6 @@ class NumpyOps:
                 return np.concatenate([np.concatenate(row, axis=-1) for row in rows], axis=-2)
             if rows[0][0].ndim == 3:                    # batches B and 1, or mixed dtypes: one allocation
                 return _assembled(rows, heights, widths)
-        if all(isinstance(e, _SCALARS) for row in rows for e in row):     # numbers only: one call, B = 1
-            out = np.array(rows)
-            return (out if out.dtype.kind in "fc" else out.astype(float))[None]
         # one allocation, one broadcasting assignment per entry (scalars and B = 1 entries broadcast)
         grid = [[entry if isinstance(entry, (int, float, complex)) else np.asarray(entry) for entry in row]
                 for row in rows]

@@ -46,6 +46,35 @@ def test_grids_that_do_not_tile_keep_the_general_assembly():
     np.testing.assert_array_equal(got, np.block([[a, complex_block], [complex_block, a]]))
 
 
+def test_a_grid_of_numbers_is_one_float_or_complex_constant():
+    """Numbers only (Python or numpy scalars, as the rigid-body terms of one state give): one ``(1, r, c)``
+    constant, integers as floats, complex kept; a number first and an array later keeps the general assembly."""
+    x, y = np.float64(RNG.normal()), RNG.normal()
+    got = NUMPY.block([[x, 0.0, y], [0, 1, np.float64(2.5)]])
+    assert got.shape == (1, 2, 3) and got.dtype == np.float64
+    np.testing.assert_array_equal(got[0], [[x, 0.0, y], [0.0, 1.0, 2.5]])
+    integers = NUMPY.block([[1], [2]])
+    assert integers.dtype == np.float64 and integers.shape == (1, 2, 1)
+    np.testing.assert_array_equal(integers[0], [[1.0], [2.0]])
+    complex_grid = NUMPY.block([[1j * x, 2.0]])
+    assert complex_grid.dtype == np.complex128
+    np.testing.assert_array_equal(complex_grid, [[[1j * x, 2.0]]])
+    batched = RNG.normal(size=(4, 1, 1))
+    mixed = NUMPY.block([[x, batched], [0.0, 1.0]])
+    assert mixed.shape == (4, 2, 2)
+    np.testing.assert_array_equal(mixed[:, 0, 1], batched[:, 0, 0])
+    np.testing.assert_array_equal(mixed[:, 1], np.broadcast_to([0.0, 1.0], (4, 2)))
+    np.testing.assert_array_equal(mixed[:, 0, 0], np.full(4, x))
+
+
+def test_a_column_of_arrays_is_concatenated_and_a_grid_is_not_a_column():
+    top, bottom = RNG.normal(size=(1, 3, 1)), RNG.normal(size=(1, 2, 1))
+    np.testing.assert_array_equal(NUMPY.block([[top], [bottom]]), np.concatenate([top, bottom], axis=1))
+    # rows of two entries: a grid, not a column
+    a, b, c = (RNG.normal(size=(1, 1, 1)) for _ in range(3))
+    np.testing.assert_array_equal(NUMPY.block([[a, b], [c, a]]), np.block([[a, b], [c, a]]))
+
+
 @pytest.mark.parametrize("batch", [1, 5])
 def test_cross_and_skew_are_the_cross_product(batch):
     for dtype in (float, complex):
