@@ -6,10 +6,10 @@ generated code) writes every statement on a leading batch axis; the explicit swe
 (:meth:`ctmm.flexible.kernel.FlexibleSystem.accelerations`) calls it at one real state per body and step, where that
 axis costs more than the arithmetic.  This module states the same equations (``docs/flexible.md``, the module
 docstrings of :mod:`ctmm.flexible.beam` and :mod:`ctmm.flexible.point_terms`) on Python floats and 1-D / 2-D float
-arrays, in the same order of operations, and rotates to global axes by combining the two rows / columns of ``R``
-(``T = diag(R, 1, I_n)``) instead of two ``(3 + n)``-square products.  The results equal the batched routine's to
-round-off (tests/test_beam_single_terms.py: 1e-13 relative, on beams with and without stiffening, axial modes, point
-and distributed loads, modal forces and laws, several ends, second-order inertia).
+arrays, in the same order of operations, and rotates to global axes by products with ``R`` on two rows and two
+columns (``T = diag(R, 1, I_n)``) instead of two ``(3 + n)``-square products.  The results equal the batched
+routine's to round-off (tests/test_beam_single_terms.py: 1e-13 relative, on beams with and without stiffening,
+axial modes, point and distributed loads, modal forces and laws, several ends, second-order inertia).
 """
 from __future__ import annotations
 
@@ -22,20 +22,6 @@ from .hooks import hook_value
 from .point_terms import point_shortening
 
 __all__ = ["single_terms"]
-
-
-def _rotate_rows(a: np.ndarray, c: float, s: float) -> None:
-    """``a[:2] <- R a[:2]`` in place (``R`` the rotation by the angle with cosine ``c`` and sine ``s``)."""
-    r0, r1 = a[0].copy(), a[1]
-    a[0] = c * r0 - s * r1
-    a[1] = s * r0 + c * r1
-
-
-def _rotate_columns(a: np.ndarray, c: float, s: float) -> None:
-    """``a[:, :2] <- a[:, :2] R^T`` in place."""
-    c0, c1 = a[:, 0].copy(), a[:, 1]
-    a[:, 0] = c * c0 - s * c1
-    a[:, 1] = s * c0 + c * c1
 
 
 def single_terms(data: Any, theta: float, omega: float, eta: np.ndarray, eta_dot: np.ndarray, t: float,
@@ -130,17 +116,19 @@ def single_terms(data: Any, theta: float, omega: float, eta: np.ndarray, eta_dot
     for label, law in d.laws:
         h[3:] -= hook_value(name, d.n, f"law of {label!r} on beam {name!r}", law, (t, eta, eta_dot), t)
     # -- rotate to global axes: M <- T M T^T, h <- T h ------------------------------------------
-    _rotate_rows(M, c, s)
-    _rotate_columns(M, c, s)
-    h[0], h[1] = c * h[0] - s * h[1], s * h[0] + c * h[1]
-    ends = [_single_end(d, k, Kin0, V, Vd, sl, q, qd, theta, omega, c, s)
+    R = np.array([[c, -s], [s, c]])
+    M[:2] = R @ M[:2]
+    M[:, :2] = M[:, :2] @ R.T
+    h[:2] = R @ h[:2]
+    ends = [_single_end(d, k, Kin0, V, Vd, sl, q, qd, theta, omega, R)
             for k, Kin0 in enumerate(d.constant_ends)]
     return M, h, ends
 
 
 def _single_end(d: Any, k: int, constant_kin: np.ndarray, V: np.ndarray, Vd: np.ndarray, slices: dict,
-                q: np.ndarray, qd: np.ndarray, theta: float, omega: float, c: float, s: float) -> tuple:
-    """:func:`ctmm.flexible.point_terms.end_terms` at one real state (see there), rotated to global axes."""
+                q: np.ndarray, qd: np.ndarray, theta: float, omega: float, R: np.ndarray) -> tuple:
+    """:func:`ctmm.flexible.point_terms.end_terms` at one real state (see there), rotated to global axes by the
+    frame's rotation ``R`` (2, 2)."""
     nq = d.nq
     ev, evd = V[slices[f"e{k}"]], Vd[slices[f"e{k}"]]
     G1q = V[slices[f"eG{k}"]]
@@ -160,9 +148,9 @@ def _single_end(d: Any, k: int, constant_kin: np.ndarray, V: np.ndarray, Vd: np.
     RF = Kb.T.copy()                                     # virtual work (with the option: -G1(x_e) q included)
     if d.stiffening and d.second_order is None:          # first order: the one-directional stiffening only
         RF[3:3 + nq, 0] -= G1q
-    _rotate_rows(Kb, c, s)                               # Kin = T_3 Kb T^T
-    _rotate_columns(Kb, c, s)
-    _rotate_rows(RF, c, s)                               # RF = T RFb T_3^T
-    _rotate_columns(RF, c, s)
-    cg = np.array([c * c0 - s * c1, s * c0 + c * c1, 0.0])
+    Kb[:2] = R @ Kb[:2]                                  # Kin = T_3 Kb T^T
+    Kb[:, :2] = Kb[:, :2] @ R.T
+    RF[:2] = R @ RF[:2]                                  # RF = T RFb T_3^T
+    RF[:, :2] = RF[:, :2] @ R.T
+    cg = np.array([R[0, 0] * c0 + R[0, 1] * c1, R[1, 0] * c0 + R[1, 1] * c1, 0.0])
     return Kb, cg, RF, theta + float(ev[2]), omega + float(evd[2])
