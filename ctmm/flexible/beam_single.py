@@ -106,9 +106,8 @@ def single_terms(data: Any, theta: float, omega: float, eta: np.ndarray, eta_dot
     h[0], h[1], h[2] = h0, h1, h2
     h[3:3 + nq] = hq
     h[3 + nq:] = hp
-    if d.second_order is not None:                      # batched statements on views of M and h (B = 1)
-        d.second_order.add_terms(M[None], h[None], np.array([omega]), q[None], qd[None],
-                                 np.array([g2 + qy / rhoA]))
+    if d.second_order is not None:
+        d.second_order.add_terms_single(M, h, omega, q, qd, g2 + qy / rhoA)
     h[3:] += d.K_total @ eta + d.D_total @ eta_dot
     name = d.beam.name
     for label, f in d.forces:
