@@ -14,7 +14,8 @@ import pytest
 from ctmm.flexible import ModalBeam
 from ctmm.flexible.beam import ModalForce
 from ctmm.flexible.beam_single import single_terms
-from ctmm.planar import Load
+from ctmm.planar import Load, Pinned, PlanarModel, RigidBody, SmoothHinge
+from ctmm.planar.elements import FixedMounting
 
 RNG = np.random.default_rng(11)
 GRAVITY = (0.7, -9.81)
@@ -68,3 +69,26 @@ def test_single_state_terms_equal_the_batched_terms(kind):
         M1, h1, _ = data.terms(theta[b:b + 1], omega[b:b + 1], eta[b:b + 1], eta_dot[b:b + 1], t, GRAVITY)
         _close(Ms, M1[0], f"{kind}: M at B = 1, state {b}")
         _close(hs, h1[0], f"{kind}: h at B = 1, state {b}")
+
+
+def test_the_explicit_sweep_terms_equal_the_batched_body_terms():
+    """FlexibleSystem.all_terms (fast path for beams) against body_terms at B = 1 (the batched routine) on a tree with
+    two beams and a link."""
+    common = dict(length=1.3, bending_stiffness=5.0, mass_per_length=0.7, n_modes=3)
+    model = PlanarModel("tree", [Pinned("o", child="b1"), ModalBeam("b1", **common, outboard={"mid": 0.6, "tip": 1.3}),
+                                 SmoothHinge("h", parent="b1.mid", child="l"),
+                                 RigidBody.uniform_link("l", mass=0.4, length=0.7),
+                                 FixedMounting("w", parent="b1.tip", child="b2", angle=-0.4),
+                                 ModalBeam("b2", **common, n_axial_modes=1, axial_stiffness=80.0)])
+    system = model.flexible_system
+    assert set(system.at_state) == set(system.beam_data)
+    q, v = 0.1 * RNG.normal(size=model.n_coordinates), RNG.normal(size=model.n_coordinates)
+    terms, (theta, omega, eta, eta_dot, loads) = system.all_terms(q, v, 0.2)
+    for j, (M, h, ends) in enumerate(terms):
+        M1, h1, ends1 = system.body_terms(j, theta[j:j + 1], omega[j:j + 1], eta[j][None], eta_dot[j][None], 0.2,
+                                          loads)
+        _close(M, M1[0], f"body {j}: M")
+        _close(h, h1[0], f"body {j}: h")
+        for (K, c, R), batched in zip(ends, ends1):
+            for got, expected in zip((K, c, R), batched):
+                _close(got, expected[0], f"body {j}: end terms")

@@ -46,6 +46,7 @@ from ..signals import Constant, SignalLike, as_signal
 from .family import ModalBeamFamily
 from .hooks import hook_value
 from .modes import ModeSet, check_quadrature, check_root_clamped, gauss_points
+from .beam_single import single_terms
 from .point_terms import end_terms, point_shortening
 from .second_order import SecondOrderInertia, check_second_order
 from .stations import check_stations, station_abscissa
@@ -349,6 +350,7 @@ class ModalBeam(DeformableBody):
 
 class BeamData:
     """Modal integrals of a :class:`ModalBeam` (see the module notation)."""
+    terms_at_state = single_terms    # terms at one real state, unbatched (the explicit sweep's fast path)
 
     def __init__(self, beam: ModalBeam) -> None:
         L, EI, rhoA = beam.length, beam.bending_stiffness, beam.mass_per_length
@@ -436,8 +438,7 @@ class BeamData:
         self.tip_psi = beam.axial_shapes([L], 0)[:, 0]
         self.phi_bound = np.max(np.abs(beam.shapes(np.linspace(0, L, 201), 0)), axis=1)
         self._eye = np.eye(3 + self.n)
-        for constant in ("constant_mass", "constant_ends", "functionals"):
-            getattr(self, constant)   # computed here, once: the data of a beam never change afterwards
+        _ = self.constant_mass, self.constant_ends, self.functionals   # once: a beam's data never change afterwards
 
     def _g1(self, x_end: float) -> np.ndarray:
         if x_end <= 0.0:
@@ -636,8 +637,7 @@ class BeamData:
         M = T @ M @ Tt
         h = (T @ h[:, :, None])[:, :, 0]
         # -- ends (point_terms.py) -----------------------------------------------------------
-        ends = [end_terms(self, k, Kin0, V, Vd, sl, q, qd, theta, omega, T)
-                for k, Kin0 in enumerate(self.constant_ends)]
+        ends = [end_terms(self, k, K0, V, Vd, sl, q, qd, theta, omega, T) for k, K0 in enumerate(self.constant_ends)]
         return M, h, ends
 
 

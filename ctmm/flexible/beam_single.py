@@ -3,11 +3,13 @@
 
 The batched routine (``B`` states, complex for the complex-step tangents, object arrays of casadi symbols for the
 generated code) writes every statement on a leading batch axis; the explicit sweep
-(:meth:`ctmm.flexible.kernel.FlexibleSystem.accelerations`) calls it at one real state per body and step, where that
-axis costs more than the arithmetic.  This module states the same equations (``docs/flexible.md``, the module
-docstrings of :mod:`ctmm.flexible.beam` and :mod:`ctmm.flexible.point_terms`) on Python floats and 1-D / 2-D float
-arrays, in the same order of operations, and rotates to global axes by products with ``R`` on two rows and two
-columns (``T = diag(R, 1, I_n)``) instead of two ``(3 + n)``-square products.  The results equal the batched
+(:meth:`ctmm.flexible.kernel.FlexibleSystem.accelerations`) needs one real state per body and step, where that axis
+costs more than the arithmetic.  The kernel calls this function as ``BeamData.terms_at_state`` (body data without
+that method, e.g. finite-element subsystems, keep their batched terms at ``B = 1``).  This module states the same
+equations (``docs/flexible.md``, the module docstrings of :mod:`ctmm.flexible.beam` and
+:mod:`ctmm.flexible.point_terms`) on Python floats and 1-D / 2-D float arrays, in the same order of operations,
+and rotates to global axes by products with ``R`` on two rows and two columns (``T = diag(R, 1, I_n)``) instead
+of two ``(3 + n)``-square products.  The results equal the batched
 routine's to round-off (tests/test_beam_single_terms.py: 1e-13 relative, on beams with and without stiffening,
 axial modes, point and distributed loads, modal forces and laws, several ends, second-order inertia).
 """
@@ -72,18 +74,21 @@ def single_terms(data: Any, theta: float, omega: float, eta: np.ndarray, eta_dot
     M = d.constant_mass.copy()
     M[0, 2] = M[2, 0] = -bq_q
     M[1, 2] = M[2, 1] = sx
-    M[2, 2] = d.I0 + d.J_r + 2 * float(V[sl["cp"].start]) + float(Mpp @ p) + float(Mqq @ q)
+    axial = d.np_ > 0                                    # axial modes (their terms are empty sums otherwise)
+    M[2, 2] = (d.I0 + d.J_r + 2 * float(V[sl["cp"].start]) + (float(Mpp @ p) if axial else 0.0)
+               + float(Mqq @ q))
     M[2, 3:3 + nq] = M[3:3 + nq, 2] = d.c_q + d.r_q + Np
-    M[2, 3 + nq:] = M[3 + nq:, 2] = -Nq
+    if axial:
+        M[2, 3 + nq:] = M[3 + nq:, 2] = -Nq
     # -- velocity, gravity and load terms in the frame ------------------------------------------
     h = np.empty(3 + d.n)
     h0 = -w2 * sx - 2 * omega * float(Vd[sl["bq"].start]) - d.m * g1 - qx * d.L
     h1 = -w2 * bq_q + 2 * omega * float(Vd[sl["bp"].start]) - d.m * g2 - qy * d.L
-    h2 = (2 * omega * (float(Vd[sl["cp"].start]) + float(Mpp @ pd) + float(Mqq @ qd))
+    h2 = (2 * omega * (float(Vd[sl["cp"].start]) + (float(Mpp @ pd) if axial else 0.0) + float(Mqq @ qd))
           - (sx * g2 - bq_q * g1)
           - qy * (d.L ** 2 / 2 + bp_p / rhoA) + qx * bq_q / rhoA)
     hq = -w2 * Mqq + 2 * omega * Vd[sl["Np"]] - (g2 + qy / rhoA) * d.b_q
-    hp = -w2 * (d.c_p + Mpp) - 2 * omega * Vd[sl["Nq"]] - (g1 + qx / rhoA) * d.b_p
+    hp = -w2 * (d.c_p + Mpp) - 2 * omega * Vd[sl["Nq"]] - (g1 + qx / rhoA) * d.b_p if axial else None
     if d.stiffening:
         G2q = V[sl["G2"]]
         hq = hq + (rhoA * g1 + qx) * G2q + (rhoA * w2) * V[sl["G3"]]
@@ -100,12 +105,14 @@ def single_terms(data: Any, theta: float, omega: float, eta: np.ndarray, eta_dot
         h1 -= f2
         h2 -= rb_x * f2 - rb_y * f1 + mz
         hq = hq - f2 * d.load_phi[k] - mz * d.load_dphi[k]
-        hp = hp - f1 * d.load_psi[k]
+        if axial:
+            hp = hp - f1 * d.load_psi[k]
         if d.stiffening:
             hq = hq + f1 * V[sl[f"lG{k}"]]
     h[0], h[1], h[2] = h0, h1, h2
     h[3:3 + nq] = hq
-    h[3 + nq:] = hp
+    if axial:
+        h[3 + nq:] = hp
     if d.second_order is not None:
         d.second_order.add_terms_single(M, h, omega, q, qd, g2 + qy / rhoA)
     h[3:] += d.K_total @ eta + d.D_total @ eta_dot
