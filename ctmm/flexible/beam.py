@@ -46,6 +46,7 @@ from ..signals import Constant, SignalLike, as_signal
 from .family import ModalBeamFamily
 from .hooks import hook_value
 from .modes import ModeSet, check_quadrature, check_root_clamped, gauss_points
+from .beam_single import single_terms
 from .point_terms import end_terms, point_shortening
 from .second_order import SecondOrderInertia, check_second_order
 from .stations import check_stations, station_abscissa
@@ -349,6 +350,7 @@ class ModalBeam(DeformableBody):
 
 class BeamData:
     """Modal integrals of a :class:`ModalBeam` (see the module notation)."""
+    terms_at_state = single_terms    # terms at one real state, unbatched (the explicit sweep's fast path)
 
     def __init__(self, beam: ModalBeam) -> None:
         L, EI, rhoA = beam.length, beam.bending_stiffness, beam.mass_per_length
@@ -436,8 +438,7 @@ class BeamData:
         self.tip_psi = beam.axial_shapes([L], 0)[:, 0]
         self.phi_bound = np.max(np.abs(beam.shapes(np.linspace(0, L, 201), 0)), axis=1)
         self._eye = np.eye(3 + self.n)
-        for constant in ("_constant_mass", "_constant_ends", "_functionals"):
-            getattr(self, constant)   # computed here, once: the data of a beam never change afterwards
+        _ = self.constant_mass, self.constant_ends, self.functionals   # once: a beam's data never change afterwards
 
     def _g1(self, x_end: float) -> np.ndarray:
         if x_end <= 0.0:
@@ -469,7 +470,7 @@ class BeamData:
         return loads, (float(dist[0]), float(dist[1]))
 
     @cached_property
-    def _constant_mass(self) -> np.ndarray:
+    def constant_mass(self) -> np.ndarray:
         """Body-frame mass matrix of the undeformed beam (``eta = 0``)."""
         nq, n = self.nq, self.n
         M0 = np.zeros((3 + n, 3 + n))
@@ -484,7 +485,7 @@ class BeamData:
         return M0
 
     @cached_property
-    def _constant_ends(self) -> list:
+    def constant_ends(self) -> list:
         """Body-frame end kinematics / force maps of the undeformed beam."""
         nq, n = self.nq, self.n
         out = []
@@ -499,7 +500,7 @@ class BeamData:
         return out
 
     @cached_property
-    def _functionals(self):
+    def functionals(self):
         """Stacked linear functionals of ``eta`` and ``eta_dot`` (one product per call)."""
         nq, np_ = self.nq, self.np_
         rows, names = [], {}
@@ -569,7 +570,7 @@ class BeamData:
         else:
             loads, qx, qy = (), self.distributed[0].value, self.distributed[1].value
         w2 = omega * omega
-        F, sl = self._functionals
+        F, sl = self.functionals
         V = eta @ F                                          # (B, r)
         Vd = eta_dot @ F
         bq_q, bp_p = V[:, sl["bq"]][:, 0], V[:, sl["bp"]][:, 0]
@@ -577,7 +578,7 @@ class BeamData:
         Np, Nq, Mqq, Mpp = V[:, sl["Np"]], V[:, sl["Nq"]], V[:, sl["Mq"]], V[:, sl["Mp"]]
         # -- mass matrix in the frame ---------------------------------------------------------
         M = np.empty((B, N3, N3), dtype=dtype)
-        M[:] = self._constant_mass
+        M[:] = self.constant_mass
         M[:, 0, 2] = M[:, 2, 0] = -bq_q
         M[:, 1, 2] = M[:, 2, 1] = sx
         M[:, 2, 2] = self.I0 + self.J_r + 2 * V[:, sl["cp"]][:, 0] + (Mpp * p).sum(1) + (Mqq * q).sum(1)
@@ -636,8 +637,7 @@ class BeamData:
         M = T @ M @ Tt
         h = (T @ h[:, :, None])[:, :, 0]
         # -- ends (point_terms.py) -----------------------------------------------------------
-        ends = [end_terms(self, k, Kin0, V, Vd, sl, q, qd, theta, omega, T)
-                for k, Kin0 in enumerate(self._constant_ends)]
+        ends = [end_terms(self, k, K0, V, Vd, sl, q, qd, theta, omega, T) for k, K0 in enumerate(self.constant_ends)]
         return M, h, ends
 
 

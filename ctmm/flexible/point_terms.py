@@ -57,7 +57,7 @@ def end_terms(data: Any, k: int, constant_kin: np.ndarray, V: Any, Vd: Any, slic
     constant_kin : (3, 3 + n)
         ``Kin_e`` of the undeformed beam in the frame.
     V, Vd : (B, r)
-        The beam's stacked linear functionals of ``eta`` and ``eta_dot`` (``BeamData._functionals``); ``slices``
+        The beam's stacked linear functionals of ``eta`` and ``eta_dot`` (``BeamData.functionals``); ``slices``
         names their columns.
     q, qd : (B, n_q)
         Transverse modal coordinates [m] and rates [m/s].

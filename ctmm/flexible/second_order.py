@@ -142,6 +142,35 @@ class SecondOrderInertia:
                                              + np.einsum("bij,bj->bi", Hqdqd, q)
                                              - 2 * w[:, None] * np.einsum("bki,bi->bk", Tqd, q))
 
+    def add_terms_single(self, M: np.ndarray, h: np.ndarray, omega: float, q: np.ndarray, qd: np.ndarray,
+                         gamma_2: float) -> None:
+        """:meth:`add_terms` at one real state (no batch axis; ``M`` (3 + n, 3 + n), ``h`` (3 + n,), ``q, qd`` (n,),
+        ``omega`` [rad/s] and ``gamma_2`` [m/s^2] floats): the same sums as matrix products, equal to round-off."""
+        r = self.rhoA
+        n = q.shape[0]
+        G2q = q @ self.G2
+        Hq = self.H @ q                                            # H(., ., ., q)
+        Hq_q = q @ Hq                                              # H(., q, ., q)
+        Tq = self.T @ q                                            # T(., ., q)
+        Tqd = self.T @ qd                                          # T(., ., q')
+        U0 = -0.5 * float(G2q @ q)
+        M[0, 3:3 + n] += -r * G2q
+        M[1, 2] += r * U0
+        M[2, 1] += r * U0
+        M[2, 2] += r * (-float((q @ self.G3) @ q) + 0.25 * float(q @ Hq_q @ q))
+        dM_2q = r * (q @ Tq - 0.5 * (Tq @ q))
+        M[2, 3:3 + n] += dM_2q
+        M[3:3 + n, 2] += dM_2q
+        M[3:3 + n, 3:3 + n] += r * Hq_q
+        w2 = omega * omega
+        Hqqq = (Hq @ q) @ q                                        # H(., q, q, q)
+        h[0] += -w2 * r * U0 - r * float((qd @ self.G2) @ qd)
+        h[1] += -2 * omega * r * float(G2q @ qd)
+        h[2] += (r * float(q @ Tqd @ qd) + 2 * omega * r * (-float((q @ self.G3) @ qd) + 0.5 * float(Hqqq @ qd))
+                 - gamma_2 * r * U0)
+        h[3:3 + n] += r * (-0.5 * w2 * Hqqq + 2 * omega * (qd @ Tq) + ((self.H @ qd) @ qd) @ q
+                           - 2 * omega * (Tqd @ q))
+
     def energy_delta(self, q: np.ndarray, qd: np.ndarray, velocity_frame: np.ndarray, omega: float,
                      gravity_frame: np.ndarray) -> float:
         """Kinetic plus gravity energy the second-order kinematics add [J] (unbatched ``q, qd`` (n,), inboard
