@@ -83,8 +83,9 @@ class FlexibleSystem:
         self.kind = model.joint_kind.tolist()
         self.pend = model.parent_end_index.tolist()
         self.beam_data = {j: b.data for j, b in model.beams.items()}
-        # bodies whose data offer the terms at one real state (BeamData.terms_at_state; others: batched terms, B = 1)
-        self.at_state = {j: d.terms_at_state for j, d in self.beam_data.items() if hasattr(d, "terms_at_state")}
+        # bodies whose data offer the terms at one real state (BeamData.terms_at_state; others: batched terms, B = 1);
+        # the data, not their bound methods, are kept: a model holding this system stays describable (cache keys)
+        self.at_state = {j: d for j, d in self.beam_data.items() if hasattr(d, "terms_at_state")}
         self.n_modal = [self.beam_data[j].n if j in self.beam_data else 0 for j in range(nb)]
         self.modal_index = model.modal_index
         self.rigid = [j for j in range(nb) if j not in self.beam_data]
@@ -151,7 +152,8 @@ class FlexibleSystem:
         terms = []
         for j in range(self.nb):
             if j in self.at_state:                      # one real state: the body's unbatched fast path
-                M, h, ends = self.at_state[j](float(theta[j]), float(omega[j]), eta[j], eta_dot[j], t, self.gravity)
+                M, h, ends = self.at_state[j].terms_at_state(float(theta[j]), float(omega[j]), eta[j], eta_dot[j], t,
+                                                             self.gravity)
                 terms.append([M, h, [(K, c, R) for K, c, R, _, _ in ends]])
                 continue
             M, h, ends = self.body_terms(j, theta[j:j + 1], omega[j:j + 1], eta[j][None, :], eta_dot[j][None, :], t,
