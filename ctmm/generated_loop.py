@@ -190,31 +190,51 @@ def compiled_time_loop(step: Any, store_every: int, rows: int, name: str, *, ext
 def time_loop_functions(step: Any, store_every: int, rows: int) -> tuple[Any, list[int], list[Any]]:
     """``(stride, sizes, blocks)`` of a generated ``step(y, u, h, p, t0, k)``: ``stride`` runs
     ``store_every`` steps, ``blocks[i]`` runs ``sizes[i]`` strides and returns every stored state
-    (columns), ``sizes = rows, rows/2, ... > 1``."""
+    (columns), ``sizes = rows, rows/2, ... > 1``.
+
+    The graph is built on the inputs that hold numbers only (an empty ``u`` or ``p``: no actuators, numbers as
+    constants, left out of the inner functions; the exported ones take all six and call them): casadi checks every
+    symbolic call with an empty (so all-zero) argument for outputs it would make zero, a sweep through the called
+    graph with every nested call expanded, which made each block's call cost as much as all its steps (1.3-2.9 s of a
+    100-body spatial chain's first compile).  The same operations in the same order: the numbers are unchanged."""
     import casadi as ca
 
     y, u, h, p, t0, k = (ca.MX.sym(label, *step.size_in(i)) for i, label in enumerate(("y", "u", "h", "p", "t0", "k")))
     arguments = [y, u, h, p, t0, k]
+    kept = [index for index, symbol in enumerate(arguments) if symbol.numel() > 0]
+    dropped = len(kept) < len(arguments)
+
+    def inner(name: str, output: Any) -> Any:
+        return ca.Function(f"{name}_kept" if dropped else name, [arguments[index] for index in kept], [output])
+
+    def exported(name: str, function: Any) -> Any:
+        return ca.Function(name, arguments, [call(function, arguments)]) if dropped else function
+
+    def call(function: Any, values: Sequence[Any]) -> Any:
+        return function(*[values[index] for index in kept])
 
     def repeated(count: int, first: Any) -> list:
         return [y] + [ca.repmat(x, 1, count) for x in (u, h, p, t0)] + [first]
 
-    stride = ca.Function("stride", arguments, [step.fold(store_every)(*repeated(
-        store_every, k + ca.DM(np.arange(store_every, dtype=float)).T)) if store_every > 1 else step(*arguments)])
+    one = inner("step", step(*arguments)) if dropped else step
+    stride_kept = inner("stride", call(one.fold(store_every), repeated(
+        store_every, k + ca.DM(np.arange(store_every, dtype=float)).T)) if store_every > 1 else call(one, arguments))
     sizes = block_sizes(rows)
-    blocks = []
+    kept_blocks: list = []
     for size in reversed(sizes):                # ascending: each block two calls of the one before
-        if not blocks or size // 2 != sizes[len(sizes) - len(blocks)]:
+        if not kept_blocks or size // 2 != sizes[len(sizes) - len(kept_blocks)]:
             first = k + ca.DM(store_every * np.arange(size, dtype=float)).T
-            output = stride.mapaccum(f"block{size}_acc", size)(*repeated(size, first))
+            output = call(stride_kept.mapaccum(f"block{size}_acc", size), repeated(size, first))
         else:
-            half, count = blocks[-1], size // 2
-            head = half(y, u, h, p, t0, k)
-            parts = [head, half(head[:, -1], u, h, p, t0, k + store_every * count)]
+            half, count = kept_blocks[-1], size // 2
+            head = call(half, arguments)
+            parts = [head, call(half, [head[:, -1], u, h, p, t0, k + store_every * count])]
             if size % 2:                        # an odd size: one stride more
-                parts.append(stride(parts[-1][:, -1], u, h, p, t0, k + store_every * (size - 1)))
+                parts.append(call(stride_kept, [parts[-1][:, -1], u, h, p, t0, k + store_every * (size - 1)]))
             output = ca.horzcat(*parts)
-        blocks.append(ca.Function(f"block{size}", arguments, [output]))
+        kept_blocks.append(inner(f"block{size}", output))
+    stride = exported("stride", stride_kept)
+    blocks = [exported(f"block{size}", block) for size, block in zip(reversed(sizes), kept_blocks)]
     blocks.reverse()
     return stride, sizes, blocks
 

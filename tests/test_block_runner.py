@@ -71,3 +71,28 @@ def test_reused_runner_maps_a_batch_and_takes_each_calls_parameters():
             for j in range(6):
                 state = numpy_rk4(state, 0.5, float(p[0, member]), 0.02, 0.1 + j * 0.02)
             np.testing.assert_allclose(reused[member, -1], state, rtol=1e-12, atol=1e-14)
+
+
+def test_a_step_without_inputs_or_parameters_keeps_its_six_inputs_and_its_numbers_bit_for_bit():
+    """Empty ``u`` and ``p`` (no actuators, numbers as constants) are left out of the functions the time loop is
+    built from (casadi sweeps a called graph for zero outputs when an argument is empty): the stride and blocks
+    still take ``(y, u, h, p, t0, k)`` and return, bit for bit, the states of the step called one step at a time
+    (casadi's virtual machine, nothing compiled), for an odd block (two halves and a stride) and its halves."""
+    import casadi as ca
+
+    y, u, p, t = ca.MX.sym("y", 2), ca.MX.sym("u", 0), ca.MX.sym("p", 0), ca.MX.sym("t")
+    step = rk4_step_function(ca.Function("rate", [y, u, p, t], [ca.vertcat(y[1], -4.0 * y[0] + ca.sin(t))]))
+    store_every, h, t0, first = 3, 0.01, 0.2, 5.0
+    stride, sizes, blocks = time_loop_functions(step, store_every, rows=5)
+    assert sizes == [5, 2]
+    for function in (stride, *blocks):
+        assert [function.size_in(i) for i in range(6)] == [step.size_in(i) for i in range(6)]
+        assert function.name_in() == step.name_in() and function.n_out() == 1
+    x, stored = np.array([0.3, -0.1]), []
+    for j in range(store_every * sizes[0]):
+        x = np.asarray(step(x, [], h, [], t0, first + j)).reshape(-1)
+        if (j + 1) % store_every == 0:
+            stored.append(x)
+    assert np.array_equal(np.asarray(stride([0.3, -0.1], [], h, [], t0, first)).reshape(-1), stored[0])
+    for size, block in zip(sizes, blocks):
+        assert np.array_equal(np.asarray(block([0.3, -0.1], [], h, [], t0, first)), np.array(stored[:size]).T)
