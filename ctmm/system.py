@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from collections.abc import Iterable, Mapping
 from typing import Any, Sequence
 
+from .elements.axial import derive_shared
 from .elements.base import Element
 from .elements.boundary import Boundary
 from .errors import ModelError, unknown_name
@@ -81,6 +82,7 @@ class Chain:
         self.body: tuple[Element, ...] = self.elements[1:-1]
         self.layout: StateLayout = self.body[0].layout   # boundaries receive it as an argument
         self._by_name = {e.name: i for i, e in enumerate(self.elements)}
+        derive_shared(self.body)                         # the 1-D forms, one probe per equal element
 
     def _validate(self) -> Iterable[str]:
         elements = self.elements

@@ -350,3 +350,36 @@ def test_elements_with_the_same_terms_and_data_share_one_probe_and_no_other():
     assert masses[1].axial_coefficients().inputs == {"force": -1.0}
     copy = pickle.loads(pickle.dumps(springs[2]))
     assert copy.axial_coefficients() == springs[2].axial_coefficients()
+
+
+def test_a_chain_build_probes_each_kind_once_and_keeps_no_memo_after_it(monkeypatch):
+    """Elements of the library's own laws are probed by the chain that holds them, once per key and build (a
+    uniform chain of 40 masses and 40 spring-dampers: one probe each); the next build probes again (no memo
+    outlives a build); an element outside a chain is probed on every call and never written to; coefficients are
+    each element's own."""
+    import ctmm.elements.axial as axial
+
+    calls = []
+    for name in ("body_coefficients", "joint_coefficients"):
+        original = getattr(axial, name)
+        monkeypatch.setattr(axial, name, lambda element, original=original, name=name: calls.append(name) or
+                            original(element))
+
+    def uniform(tag):
+        return [e for i in range(40) for e in (SpringDamper(f"{tag}k{i}", 100.0, 0.5), Mass(f"{tag}m{i}", 2.0))]
+
+    for tag in "ab":
+        body = uniform(tag)
+        assert calls == []                                       # built, not probed
+        chain = ctmm.Chain(tag, [Fixed("g")] + body + [Free("e")])
+        assert sorted(calls) == ["body_coefficients", "joint_coefficients"], calls
+        calls.clear()
+    assert [(e.axial_coefficients().inertia, e.axial_coefficients().damping, e.axial_coefficients().stiffness)
+            for e in chain.body[:2]] == [(0.0, 0.5, 100.0), (2.0, 0.0, 0.0)]
+    chain.body[1].axial_coefficients().inputs["force"] = 99.0  # one element's mapping is its own
+    assert chain.body[3].axial_coefficients().inputs == {"force": -1.0}
+    lone = Mass("lone", 2.0)
+    built = dict(vars(lone))
+    assert lone.lumped_coefficients() == chain.body[3].lumped_coefficients() and calls == ["body_coefficients"]
+    assert lone.lumped_coefficients() == chain.body[3].lumped_coefficients() and len(calls) == 2
+    assert vars(lone) == built

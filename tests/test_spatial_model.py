@@ -72,6 +72,43 @@ def test_tree_validation() -> None:
     assert model.coordinates == ("s.qw", "s.qx", "s.qy", "s.qz") and model.velocities == ("s.wx", "s.wy", "s.wz")
 
 
+
+def test_check_state_of_inner_loop_arrays_refuses_and_accepts_as_the_rules_say() -> None:
+    """``check_state`` takes float64 arrays of the right sizes (the inner loops' states) through a cheap test: every
+    refusal of the full check still holds for them (non-finite entries anywhere in a batch, a quaternion of norm
+    below 1e-9, wrong sizes), states near the limits pass (a quaternion of norm 2e-9, entries whose sum overflows),
+    and the arrays come back as rows without a copy."""
+    model = sp.SpatialModel("m", [body(), body("c"), sp.Spherical(name="s", parent=None, child="b"),
+                                  sp.Revolute(name="r", parent="b", point="tip", child="c", axis=(1, 0, 0))])
+    q, v = np.array([1.0, 0.0, 0.0, 0.0, 0.3]), np.array([0.1, 0.2, 0.3, 0.4])
+    q_rows, v_rows = model.check_state(q, v)
+    assert q_rows.shape == (1, 5) and v_rows.shape == (1, 4) and np.shares_memory(q_rows, q)
+    batch = np.repeat(q[None], 3, axis=0)
+    for bad, words in ((np.nan, "must be finite"), (np.inf, "must be finite")):
+        rows = batch.copy()
+        rows[2, 4] = bad
+        with pytest.raises(ModelError, match=words):
+            model.check_state(rows, np.zeros((3, 4)))
+        with pytest.raises(ModelError, match=words):
+            model.check_state(q, np.array([0.0, bad, 0.0, 0.0]))
+    rows = batch.copy()
+    rows[1, :4] = [1e-10, 0.0, 0.0, 0.0]
+    with pytest.raises(ModelError, match="quaternion of joint 's' is zero"):
+        model.check_state(rows, np.zeros(4))
+    rows[1, :4] = [2e-9, 0.0, 0.0, 0.0]                          # small but not zero: accepted
+    assert model.check_state(rows, np.zeros(4))[0] is rows
+    huge = np.array([1e308, 1e308, 0.0, 0.0, 1e308])            # finite entries whose sum overflows
+    assert np.array_equal(model.check_state(huge, v)[0], huge[None])
+    with pytest.raises(ModelError, match="q must have 5 entries"):
+        model.check_state(np.zeros(4), v)
+    with pytest.raises(ModelError, match="v must have 4 entries"):
+        model.check_state(q, np.zeros((1, 5)))
+    with pytest.raises(ModelError, match="q must have 5 entries"):
+        model.check_state(np.ones((1, 1, 5)), v)
+    swapped = q.astype(">f8")                                   # non-native float64: converted
+    assert model.check_state(swapped, v)[0].dtype == np.dtype(float)
+    assert np.array_equal(model.check_state(swapped, v)[0], q[None])
+
 def test_driven_joint_matches_pinocchio_partitioned_dynamics() -> None:
     """A driven revolute in the middle of a chain: the free joints' accelerations and the driven joint's
     torque (an output) equal Pinocchio's with the driven acceleration moved to the right-hand side."""

@@ -30,7 +30,7 @@ from abc import abstractmethod
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from types import MappingProxyType
-from typing import Any, Hashable, Mapping
+from typing import Any, Hashable, Mapping, Sequence
 
 import numpy as np
 
@@ -41,7 +41,7 @@ from ..protocol import BodyTerms, JointTerms, Motion
 from .base import DiscreteElement, Element, Linearisation, LumpedCoefficients
 
 __all__ = ["AxialCoefficients", "AxialBody", "AxialJoint", "DiscreteAxialBody", "DiscreteAxialJoint",
-           "body_coefficients", "joint_coefficients"]
+           "body_coefficients", "joint_coefficients", "derive_shared"]
 
 _ZERO = np.zeros((1, 1, 1))
 
@@ -150,38 +150,32 @@ def joint_coefficients(joint: "AxialJoint") -> AxialCoefficients:
     return AxialCoefficients(0.0 - tangent(terms.tau_a), 0.0 - damping, 0.0 - stiffness, rest, inputs)
 
 
-class _Keyed:
-    """An element standing for every element of the same :meth:`~AxialBody.coefficient_key` (hash and equality by
-    the key alone; the element is dropped once its coefficients are derived, so the memo holds no element)."""
-
-    __slots__ = ("key", "element", "derive")
-
-    def __init__(self, key: Any, element: Element, derive) -> None:
-        self.key, self.element, self.derive = key, element, derive
-
-    def __hash__(self) -> int:
-        return hash(self.key)
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, _Keyed) and self.key == other.key
-
-
-@lru_cache(maxsize=1024)
-def _shared_coefficients(keyed: _Keyed) -> AxialCoefficients:
-    return keyed.derive(keyed.element)
+def _derive(element: "AxialBody | AxialJoint", shared: dict | None = None, key: Hashable | None = None) -> None:
+    """Store the affine form of ``element``'s terms and its lumped coefficients on it; with ``shared`` (one
+    build's probes, by kind and :meth:`~AxialBody.coefficient_key` ``key``) it reuses the probe of an equal element."""
+    connector = isinstance(element, AxialJoint)
+    derive = joint_coefficients if connector else body_coefficients
+    if shared is None or key is None:
+        co = derive(element)
+    else:
+        co = shared.get((connector, key))
+        if co is None:
+            co = shared[connector, key] = derive(element)
+        co = replace(co, inputs=dict(co.inputs))                # each element owns its mapping
+    element._axial = co
+    element._lumped = _lumped(co, connector)
 
 
-def _coefficients(element: "AxialBody | AxialJoint", derive) -> AxialCoefficients:
-    """``derive(element)``, probed once per :meth:`~AxialBody.coefficient_key` (every element when it is None)."""
-    key = element.coefficient_key()
-    if key is None:
-        return derive(element)
-    keyed = _Keyed((derive, key), element, derive)
-    try:
-        shared = _shared_coefficients(keyed)
-    finally:
-        keyed.element = None
-    return replace(shared, inputs=dict(shared.inputs))         # each element owns its mapping
+def derive_shared(elements: Sequence[Element]) -> None:
+    """Derive the forms of the 1-D elements among ``elements`` that have a :meth:`~AxialBody.coefficient_key` and no
+    forms yet, probing the terms once per key (one memo for this call, e.g. one :class:`~ctmm.system.Chain` build:
+    a uniform chain of N masses probes one mass and one connector)."""
+    shared: dict = {}
+    for element in elements:
+        if isinstance(element, (AxialBody, AxialJoint)) and element.__dict__.get("_axial") is None:
+            key = element.coefficient_key()
+            if key is not None:
+                _derive(element, shared, key)
 
 
 def _lumped(co: AxialCoefficients, connector: bool) -> LumpedCoefficients:
@@ -215,13 +209,18 @@ class AxialBody(Element):
         return None
 
     def derive_forms(self) -> None:
-        """Derive the affine form once; call it last in ``__init__`` (the description is then complete
-        and never changes: the verbs only read it)."""
-        self._axial = _coefficients(self, body_coefficients)
-        self._lumped = _lumped(self._axial, connector=False)
+        """Derive the affine form; call it last in ``__init__`` (the verbs only read it) and again after changing
+        the data.  An element with a :meth:`coefficient_key` (the library's own laws on its numbers) is probed by the
+        :class:`~ctmm.system.Chain` build that takes it (:func:`derive_shared`: one probe per key and build; outside
+        a chain on every call), any other at once (terms that are not affine are refused here)."""
+        self.__dict__.pop("_axial", None)
+        self.__dict__.pop("_lumped", None)
+        if self.coefficient_key() is None:
+            _derive(self)
 
     def axial_coefficients(self) -> AxialCoefficients:
-        """The affine form of :meth:`terms` (derived by :meth:`derive_forms`, else on every call)."""
+        """The affine form of :meth:`terms` (derived by :meth:`derive_forms` or the chain build, else on every call:
+        a verb never writes to an element)."""
         cached = self.__dict__.get("_axial")
         return cached if cached is not None else body_coefficients(self)
 
@@ -272,13 +271,15 @@ class AxialJoint(Element):
         return None
 
     def derive_forms(self) -> None:
-        """Derive the affine form once; call it last in ``__init__`` (the description is then complete
-        and never changes: the verbs only read it)."""
-        self._axial = _coefficients(self, joint_coefficients)
-        self._lumped = _lumped(self._axial, connector=True)
+        """As :meth:`AxialBody.derive_forms`."""
+        self.__dict__.pop("_axial", None)
+        self.__dict__.pop("_lumped", None)
+        if self.coefficient_key() is None:
+            _derive(self)
 
     def axial_coefficients(self) -> AxialCoefficients:
-        """The affine form of :meth:`terms` (derived by :meth:`derive_forms`, else on every call)."""
+        """The affine form of :meth:`terms` (derived by :meth:`derive_forms` or the chain build, else on every call:
+        a verb never writes to an element)."""
         cached = self.__dict__.get("_axial")
         return cached if cached is not None else joint_coefficients(self)
 

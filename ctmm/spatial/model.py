@@ -14,6 +14,7 @@ with ``q_dot = G(q) v`` (:meth:`SpatialModel.position_rates`).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
@@ -26,6 +27,8 @@ from .elements import JOINT_TYPES, Load, SpatialBody
 from .frames import quaternion_rate
 
 __all__ = ["SpatialModel", "Layout"]
+
+_FLOAT = np.dtype(float)
 
 
 @dataclass(frozen=True)
@@ -146,6 +149,9 @@ class SpatialModel:
         (``None`` for rigid bodies); after every joint coordinate, in body order."""
         self.n_positions, self.n_velocities = nq, nv
         self.inputs = tuple(name for joint in self._joints for name in joint.inputs)
+        blocks = [_quaternion_blocks(joint.kind, layout.position) for joint, layout in zip(self._joints, self.layout)]
+        self._quaternion_columns = np.array([range(b.start, b.stop) for b in blocks if b is not None],
+                                            dtype=int).reshape(-1, 4)       # (k, 4): check_state's fast path
 
     @property
     def bodies(self) -> tuple[SpatialBody | SpatialBeam, ...]:
@@ -241,7 +247,25 @@ class SpatialModel:
 
     def check_state(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(q, v)`` as float arrays ``(B, nq)``, ``(B, nv)``; raises :class:`ModelError` on wrong sizes,
-        non-finite values or zero quaternions."""
+        non-finite values or zero quaternions.
+
+        The states of inner loops (float64 ndarrays of the right sizes, finite, quaternions clearly non-zero)
+        pass a cheap test and come back as they are (a leading axis added to a 1-D state); anything else gets
+        the full check, which converts or refuses with the clear error."""
+        if type(q) is np.ndarray and type(v) is np.ndarray and q.dtype is _FLOAT and v.dtype is _FLOAT:
+            q_rows = q[None] if q.ndim == 1 else q
+            v_rows = v[None] if v.ndim == 1 else v
+            if (q_rows.ndim == 2 and v_rows.ndim == 2 and q_rows.shape[1] == self.n_positions
+                    and v_rows.shape[1] == self.n_velocities and math.isfinite(q_rows.sum() + v_rows.sum())):
+                if not len(self._quaternion_columns) or not len(q_rows):
+                    return q_rows, v_rows
+                blocks = q_rows[:, self._quaternion_columns]            # (B, k, 4)
+                if (blocks * blocks).sum(axis=2).min() >= 1e-17:        # every norm >= 3e-9 > 1e-9
+                    return q_rows, v_rows
+        return self._checked_state(q, v)
+
+    def _checked_state(self, q: Any, v: Any) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`check_state`'s full check: conversion and every refusal with its message."""
         given_q, given_v = q, v
         q, v = (_numbers(self.name, label, value) for label, value in (("q", q), ("v", v)))
         q = q[None] if q.ndim == 1 else q
