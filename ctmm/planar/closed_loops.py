@@ -142,8 +142,9 @@ class KinematicLoopModel:
         return f"KinematicLoopModel({self.name!r}, cuts={[cut.name for cut in self.cuts]})"
 
     def _points_at(self, q, qdot, t: float) -> dict:
-        """:meth:`PlanarModel.points` with the state itself (``"q"``, ``"qdot"``: the deformable ends read it)."""
-        points = self.tree.points(q, qdot, t)
+        """:meth:`PlanarModel.points` with the state itself (``"q"``, ``"qdot"``: the deformable ends read it); the
+        cut points read no centre of mass."""
+        points = self.tree.points(q, qdot, t, centres=False)
         points["q"], points["qdot"], points["t"] = q, qdot, t
         return points
 

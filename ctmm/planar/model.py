@@ -551,10 +551,10 @@ class PlanarModel:
             qdot = np.asarray(qdot)
             th = np.array(th, dtype=np.result_type(th, q))
             om = np.array(om, dtype=np.result_type(om, qdot))
-            for i in range(self.n_bodies):
-                if p[i] in self.beams:
+            for i, parent in enumerate(self._parent_list):     # Python ints: no numpy scalar per body
+                if parent in self.beams:
                     slope = self.end_slope(i)
-                    idx = self.modal_index[p[i]][:len(slope)]
+                    idx = self.modal_index[parent][:len(slope)]
                     th[i] = th[i] + slope @ q[idx]
                     om[i] = om[i] + slope @ qdot[idx]
         return th, om
@@ -587,11 +587,11 @@ class PlanarModel:
         return (theta - np.concatenate((theta, self.ground_angle))[index],
                 omega - np.concatenate((omega, self._zeros))[index])
 
-    def points(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0) -> dict[str, np.ndarray]:
+    def points(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0, centres: bool = True) -> dict[str, np.ndarray]:
         """Positions and velocities of inboard ends and centres of mass in global axes.
 
-        Returns a dict with arrays ``inboard``, ``inboard_velocity``, ``com``,
-        ``com_velocity`` (shape ``(n_bodies, 2)``), ``theta`` and ``omega``.
+        Returns a dict with arrays ``inboard``, ``inboard_velocity``, ``com``, ``com_velocity`` (shape
+        ``(n_bodies, 2)``; ``centres=False``: without the centres of mass), ``theta`` and ``omega``.
         """
         q, qdot = self.state(q, qdot)
         theta, omega = self.body_angles(q, qdot, t)
@@ -620,6 +620,8 @@ class PlanarModel:
                 ix, iy = self.xy_index[i]
                 r_in[i] = r_in[i] + (q[ix], q[iy])
                 v_in[i] = v_in[i] + (qdot[ix], qdot[iy])
+        if not centres:                                 # e.g. the cut points of kinematic loops read no more
+            return {"inboard": r_in, "inboard_velocity": v_in, "theta": theta, "omega": omega}
         rcx = c * self.com[:, 0] - s * self.com[:, 1]
         rcy = s * self.com[:, 0] + c * self.com[:, 1]
         com = r_in + np.column_stack([rcx, rcy])
