@@ -534,6 +534,12 @@ class ActuatorInputs:
     modal_force: Mapping[int, np.ndarray] = field(default_factory=dict)
     frame_wrench: Mapping[int, np.ndarray] = field(default_factory=dict)
 
+    def has_wrench(self) -> bool:
+        """Whether these inputs load the bodies (body forces, beam frame wrenches), not the hinges and modes only:
+        without, :meth:`inboard_wrench` is zero and the sweeps skip it."""
+        force = self.body_force
+        return bool(self.frame_wrench) or force.dtype.kind not in "fc" or bool(force.any())
+
     def inboard_wrench(self, model: PlanarModel, theta: np.ndarray) -> np.ndarray:
         """``(fx, fy, moment about the inboard point)`` of the body forces, shape (n_bodies, 3),
         with the bodies at absolute angles ``theta`` [rad]."""

@@ -163,9 +163,8 @@ def _with_inputs(model: PlanarModel, theta, b: np.ndarray, tau: np.ndarray, inpu
     (:class:`ctmm.planar.ports.ActuatorInputs`; loads enter ``b`` with a minus sign)."""
     if inputs is None:
         return b, tau
-    force = inputs.body_force
-    if not inputs.frame_wrench and force.dtype.kind in "fc" and not force.any():    # torques only: no wrench
-        return b, tau + inputs.hinge_torque     # (b - 0 is b: the same numbers without the lever arithmetic)
+    if not inputs.has_wrench():                 # torques only (most loops): b - 0 is b, without the lever arithmetic
+        return b, tau + inputs.hinge_torque
     return b - inputs.inboard_wrench(model, theta), tau + inputs.hinge_torque
 
 
