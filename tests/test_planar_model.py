@@ -122,3 +122,23 @@ def test_tree_topological_order_and_energy():
     energy = model.energy(q, np.zeros(3))
     # potential: centres at y = 0 (fork), 0.5 (x), -0.5 (y): sum = 0
     assert energy == pytest.approx(0.0, abs=1e-12)
+
+
+def test_constant_prescribed_motions_read_like_varying_ones():
+    """``driven(t)`` reads constant prescribed motions (numbers, welded mountings) once at construction: the
+    same tuples as the same motion given as functions of time (evaluated per call), and a varying one still
+    follows ``t``."""
+    from ctmm.planar.elements import FixedMounting
+
+    def model(angle, rate, acceleration):
+        return PlanarModel.chain("m", [Fixed("g"), DrivenHinge("d", angle=angle, rate=rate, acceleration=acceleration),
+                                       link("a"), FixedMounting("w", angle=0.25), link("b")])
+
+    constant, functions = model(0.3, 0.0, 0.0), model(lambda t: 0.3, lambda t: 0.0, lambda t: 0.0)
+    for t in (0.0, 1.7):
+        assert constant.driven(t) == functions.driven(t) == [(0, 0.3, 0.0, 0.0), (1, 0.25, 0.0, 0.0)]
+    assert all(type(value) is float for entry in constant.driven(0.0) for value in entry[1:])
+    constant.driven(0.0).clear()                        # a caller's list is its own
+    assert len(constant.driven(0.0)) == 2
+    moving = model(math.sin, math.cos, lambda t: -math.sin(t))
+    assert moving.driven(0.5)[0] == (0, math.sin(0.5), math.cos(0.5), -math.sin(0.5))

@@ -139,6 +139,41 @@ def test_bad_names_are_refused_with_the_available_names():
         ports.sensor_values(model, "fore.out.y", *STATE)
 
 
+def test_one_ports_object_keeps_refusing_after_its_names_were_resolved():
+    """A ports object resolves each actuator once (a time loop asks every stage): later calls still refuse
+    non-finite values and unknown names, sum entries on one actuator and add body forces to the sweep."""
+    model = arm()
+    named = ports.PlanarPorts(model)
+    first = named.inputs({"motor.torque": 0.5, "fore.force_y": 0.0})
+    assert first.hinge_torque[0] == 0.5 and not first.body_force.any()
+    for bad in (float("nan"), np.float64(np.inf), "1.0", np.array([1.0, 2.0]), True):
+        with pytest.raises(ModelError, match="actuator 'motor.torque'"):
+            named.inputs({"motor.torque": bad})
+    with pytest.raises(UnknownNameError, match="motor.torque"):
+        named.inputs({"motor.force": 1.0})
+    np.testing.assert_array_equal(named.inputs({"motor.torque": np.float64(0.25)}).hinge_torque, [0.25, 0.0])
+    pushed = named.inputs({"motor.torque": 0.5, "fore.force_y": -0.4})
+    assert pushed.body_force[1, 1] == -0.4
+    # a body force changes the accelerations (the torque-only path must not drop it); torque-only inputs equal the
+    # model's own hinge torque
+    q, v = STATE
+    assert np.max(np.abs(accelerations(model, q, v, inputs=pushed) - accelerations(model, q, v, inputs=first))) > 0.1
+    np.testing.assert_allclose(accelerations(model, q, v, inputs=first), accelerations(arm(torque=0.5), q, v),
+                               rtol=1e-14, atol=1e-14)
+
+
+def test_points_without_centres_are_the_inboard_ends_of_the_full_points():
+    """``PlanarModel.points(..., centres=False)`` (what the cut points of kinematic loops read) holds the same
+    inboard ends, velocities and angles as the full call, which adds the centres of mass."""
+    model = arm()
+    q, v = STATE
+    full, ends = model.points(q, v, 0.0), model.points(q, v, 0.0, centres=False)
+    assert set(full) - set(ends) == {"com", "com_velocity"}
+    for key, value in ends.items():
+        np.testing.assert_array_equal(value, full[key])
+    np.testing.assert_allclose(ends["inboard"][1], [L1 * np.cos(q[0]), L1 * np.sin(q[0])], rtol=1e-15, atol=1e-15)
+
+
 def test_controlled_model_validates_loops_and_with_feedback_dispatches():
     model = arm()
     pd = Feedback("pd", sensor=[("motor.angle", 20.0), ("motor.rate", 2.0)], actuator="motor.torque", delay=0.01,

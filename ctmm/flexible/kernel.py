@@ -257,8 +257,8 @@ class FlexibleSystem:
         terms (in place: the terms are this step's work arrays) and return the hinge torques."""
         if inputs is None:
             return tau
-        wrench = inputs.inboard_wrench(self.model, theta)
-        for j in self.rigid:
+        wrench = inputs.inboard_wrench(self.model, theta) if inputs.has_wrench() else None   # None: it is zero
+        for j in self.rigid if wrench is not None else ():
             terms[j][1] = terms[j][1] - wrench[j]
         for j in set(inputs.modal_force) | set(inputs.frame_wrench):
             h = terms[j][1].copy()

@@ -134,6 +134,7 @@ class KinematicLoopModel:
         self.cut_points = CutPoints(tree, cuts, self.foreshortening)
         self._points = self.cut_points.sides
         self._rows = np.cumsum([0] + [3 if cut.driven else 2 for cut in cuts])   # first row of each cut, and m
+        self._unit_loads = np.vstack([np.zeros(self._rows[-1]), np.eye(self._rows[-1])])   # none, then each unit load
         self.name = tree.name
         self._tangents: dict = {}           # (q0, t, baumgarte) -> (A, N, q0, jacobian error): resting_tangent
         self._equilibria: dict = {}         # (guess, t, tolerance, largest step) -> equilibrium (the last 8)
@@ -142,8 +143,9 @@ class KinematicLoopModel:
         return f"KinematicLoopModel({self.name!r}, cuts={[cut.name for cut in self.cuts]})"
 
     def _points_at(self, q, qdot, t: float) -> dict:
-        """:meth:`PlanarModel.points` with the state itself (``"q"``, ``"qdot"``: the deformable ends read it)."""
-        points = self.tree.points(q, qdot, t)
+        """:meth:`PlanarModel.points` with the state itself (``"q"``, ``"qdot"``: the deformable ends read it); the
+        cut points read no centre of mass."""
+        points = self.tree.points(q, qdot, t, centres=False)
         points["q"], points["qdot"], points["t"] = q, qdot, t
         return points
 
@@ -305,9 +307,8 @@ class KinematicLoopModel:
         points = self._points_at(q, qdot, t)
         side_points = self._side_points(points)         # the sides' kinematics and laws once for every unit load
         sides = (side_points, self._law_moments(points))
-        loads = np.vstack([np.zeros(self._rows[-1]), np.eye(self._rows[-1])])   # none, then each unit load
         solutions = solve_instant_inputs(self.tree, q, qdot, t, [self._cut_loads(points, load, inputs, sides)
-                                                                  for load in loads])   # the tree's terms once
+                                                                  for load in self._unit_loads])   # terms once
         qdd0, a0 = solutions[0].qddot, self._relative(solutions[0], points, t, side_points)
         G = np.column_stack([self._relative(solution, points, t, side_points) - a0 for solution in solutions[1:]])
         dqdd = np.column_stack([solution.qddot - qdd0 for solution in solutions[1:]])

@@ -273,8 +273,8 @@ class CutPoints:
         if j < 0:
             return
         m, th = self.tree, points["theta"][j]
-        c, s = np.cos(th), np.sin(th)
         if not isinstance(e, np.ndarray):
+            c, s = np.cos(th), np.sin(th)
             local, _ = self.end_local(j, e, points["q"], points["qdot"])
             fx, fy = c * force[0] + s * force[1], -s * force[0] + c * force[1]
             frame[j] = frame.get(j, np.zeros(3)) + (fx, fy, local[0] * fy - local[1] * fx)

@@ -158,13 +158,14 @@ class _NewtonStep:
         """
         m = self.model
         K, b, tau_tilde = tangent["K"], tangent["b"], tangent["tau_tilde"]
-        if inputs is not None:
+        if inputs is not None and inputs.has_wrench():      # (without: the wrench and its turn are zero)
             rcx, rcy = tangent["rc"]
             force = inputs.body_force
             turn = (rcx * force[:, 0] + rcy * force[:, 1]) * self.bh2
             K, b = K.copy(), b - inputs.inboard_wrench(m, tangent["theta"])
             K[:, 8] += turn
             b[:, 2] -= turn * tangent["alpha"]
+        if inputs is not None:
             tau_tilde = tau_tilde + inputs.hinge_torque
         if not len(m.bushing_bodies):           # rigid revolute trees: the sweep traced once per structure
             A_new, F_new, _ = model_sweep(m)(K, b, tangent["E"], tangent["kappa"], tau_tilde, tangent["alpha_d"])

@@ -334,6 +334,8 @@ class PlanarModel:
         self._driven_signals = ([f for _, a, r, c in self._driven for f in (a, r, c)],    # (functions, labels,
                                 [self.joint_names[i] for i, *_ in self._driven for _ in range(3)],   # parts) of
                                 [part for _ in self._driven for part in ("angle", "rate", "acceleration")])  # driven()
+        constant = all(isinstance(f, Constant) for f in self._driven_signals[0])      # driven(): read once
+        self._constant_driven = [(i, a.value, r.value, c.value) for i, a, r, c in self._driven] if constant else None
         self.nonlinear_hinges = {i: j.hinge for i, j in enumerate(self._joints) if isinstance(j.hinge, NonlinearHinge)}
         laws = self._reference + self._reference_rate + self._torque           # hinge_laws: constants once,
         self._constant_laws = all(isinstance(f, Constant) for f in laws)        # the others evaluated per call
@@ -495,16 +497,15 @@ class PlanarModel:
         if self._constant_loads:
             return self._load_values
         functions = [f for s in self._load_signals for f in s]
-        labels = [f"load {k} of body {self.body_names[b]!r}" for k, b in enumerate(self.load_body)
-                  for _ in range(3)]
+        labels = [f"load {k} of body {self.body_names[b]!r}" for k, b in enumerate(self.load_body) for _ in range(3)]
         parts = [part for _ in self._load_signals for part in ("force_x", "force_y", "moment")]
         return signal_values(functions, t, labels, parts, quote=False).reshape(-1, 3)
 
     def driven(self, t: float) -> list[tuple[int, float, float, float]]:
-        """``(body, angle, rate, acceleration)`` of every driven joint at time ``t``
-        (:class:`~ctmm.planar.signals.SignalError` naming the joint when a prescribed motion fails)."""
-        if not self._driven:
-            return []
+        """``(body, angle, rate, acceleration)`` of every driven joint at time ``t`` (constant ones, e.g. welded
+        mountings, read once; :class:`~ctmm.planar.signals.SignalError` naming the joint when a motion fails)."""
+        if self._constant_driven is not None:
+            return list(self._constant_driven)
         values = signal_values(self._driven_signals[0], t, *self._driven_signals[1:]).reshape(-1, 3)
         return [(i, float(v[0]), float(v[1]), float(v[2])) for (i, *_), v in zip(self._driven, values)]
 
@@ -547,14 +548,13 @@ class PlanarModel:
         th = np.where(has, theta[np.maximum(p, 0)], self.ground_angle)
         om = np.where(has, omega[np.maximum(p, 0)], 0.0)
         if self.has_flexible:
-            q = np.asarray(q)
-            qdot = np.asarray(qdot)
+            q, qdot = np.asarray(q), np.asarray(qdot)
             th = np.array(th, dtype=np.result_type(th, q))
             om = np.array(om, dtype=np.result_type(om, qdot))
-            for i in range(self.n_bodies):
-                if p[i] in self.beams:
+            for i, parent in enumerate(self._parent_list):     # Python ints: no numpy scalar per body
+                if parent in self.beams:
                     slope = self.end_slope(i)
-                    idx = self.modal_index[p[i]][:len(slope)]
+                    idx = self.modal_index[parent][:len(slope)]
                     th[i] = th[i] + slope @ q[idx]
                     om[i] = om[i] + slope @ qdot[idx]
         return th, om
@@ -587,11 +587,11 @@ class PlanarModel:
         return (theta - np.concatenate((theta, self.ground_angle))[index],
                 omega - np.concatenate((omega, self._zeros))[index])
 
-    def points(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0) -> dict[str, np.ndarray]:
+    def points(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0, centres: bool = True) -> dict[str, np.ndarray]:
         """Positions and velocities of inboard ends and centres of mass in global axes.
 
-        Returns a dict with arrays ``inboard``, ``inboard_velocity``, ``com``,
-        ``com_velocity`` (shape ``(n_bodies, 2)``), ``theta`` and ``omega``.
+        Returns a dict with arrays ``inboard``, ``inboard_velocity``, ``com``, ``com_velocity`` (shape
+        ``(n_bodies, 2)``; ``centres=False``: without the centres of mass), ``theta`` and ``omega``.
         """
         q, qdot = self.state(q, qdot)
         theta, omega = self.body_angles(q, qdot, t)
@@ -620,6 +620,8 @@ class PlanarModel:
                 ix, iy = self.xy_index[i]
                 r_in[i] = r_in[i] + (q[ix], q[iy])
                 v_in[i] = v_in[i] + (qdot[ix], qdot[iy])
+        if not centres:                                 # e.g. the cut points of kinematic loops read no more
+            return {"inboard": r_in, "inboard_velocity": v_in, "theta": theta, "omega": omega}
         rcx = c * self.com[:, 0] - s * self.com[:, 1]
         rcy = s * self.com[:, 0] + c * self.com[:, 1]
         com = r_in + np.column_stack([rcx, rcy])

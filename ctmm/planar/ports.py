@@ -44,6 +44,7 @@ Accelerations are not sensors here (they would close an algebraic loop through t
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -267,6 +268,7 @@ class PlanarPorts(NamedPorts):
         # mode-shape rows of beam stations, computed on first use (the model is immutable); they were
         # recomputed on every evaluation, most of a station-loop step
         self._station_rows: dict = {}
+        self._resolved_actuators: dict[str, _Actuator] = {}     # actuator name -> its checked entry (inputs)
 
     def check_sensor(self, name: str, what: str = "sensor") -> str:
         """``name`` if it is a sensor, else an error listing the sensors."""
@@ -309,9 +311,13 @@ class PlanarPorts(NamedPorts):
         force = np.zeros((nb, 3))
         modal: dict[int, np.ndarray] = {}
         frame: dict[int, np.ndarray] = {}
+        resolved = self._resolved_actuators
         for name, value in values.items():
-            actuator = self.actuators[self.check_actuator(name)]
-            value = validation.finite(f"actuator {name!r}", value)
+            actuator = resolved.get(name)
+            if actuator is None:        # checked and resolved once per name (every stage of a time loop asks)
+                actuator = resolved[name] = self.actuators[self.check_actuator(name)]
+            if not (type(value) is float and math.isfinite(value)):
+                value = validation.finite(f"actuator {name!r}", value)
             if actuator.kind == "hinge":
                 torque[actuator.index] += value
             elif actuator.kind == "body":
@@ -527,6 +533,12 @@ class ActuatorInputs:
     body_force: np.ndarray
     modal_force: Mapping[int, np.ndarray] = field(default_factory=dict)
     frame_wrench: Mapping[int, np.ndarray] = field(default_factory=dict)
+
+    def has_wrench(self) -> bool:
+        """Whether these inputs load the bodies (body forces, beam frame wrenches), not the hinges and modes only:
+        without, :meth:`inboard_wrench` is zero and the sweeps skip it."""
+        force = self.body_force
+        return bool(self.frame_wrench) or force.dtype.kind not in "fc" or bool(force.any())
 
     def inboard_wrench(self, model: PlanarModel, theta: np.ndarray) -> np.ndarray:
         """``(fx, fy, moment about the inboard point)`` of the body forces, shape (n_bodies, 3),

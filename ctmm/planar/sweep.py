@@ -163,6 +163,8 @@ def _with_inputs(model: PlanarModel, theta, b: np.ndarray, tau: np.ndarray, inpu
     (:class:`ctmm.planar.ports.ActuatorInputs`; loads enter ``b`` with a minus sign)."""
     if inputs is None:
         return b, tau
+    if not inputs.has_wrench():                 # torques only (most loops): b - 0 is b, without the lever arithmetic
+        return b, tau + inputs.hinge_torque
     return b - inputs.inboard_wrench(model, theta), tau + inputs.hinge_torque
 
 
