@@ -20,12 +20,18 @@ and walks the class's whole module once per class (436 classes: 5 of the build's
 :func:`class_lines` finds the same first line from one walk of the module's syntax tree that pdoc
 parses anyway, and the build uses it while pdoc runs (:func:`indexed_class_sources`); the lines
 returned are inspect's own, cut by :func:`inspect.getblock` as before.
+
+pdoc keeps every module's documentation objects (and their cached members) alive for the whole build; the
+cyclic garbage collector's full passes rescan that growing heap about a dozen times without much to free
+(5 of the ~27 s of CPU): :func:`build` pauses the collector while pdoc runs (:func:`paused_garbage_collection`;
+the peak memory grows by ~5 %, reference counting still frees everything that is not in a cycle).
 """
 from __future__ import annotations
 
 import argparse
 import ast
 import contextlib
+import gc
 import inspect
 import linecache
 import os
@@ -138,6 +144,19 @@ def pdoc_tree(module: types.ModuleType | None, source: str) -> ast.AST:
     return ast.parse(source)
 
 
+@contextlib.contextmanager
+def paused_garbage_collection() -> Iterator[None]:
+    """While in the context the cyclic garbage collector does not run (reference counting still frees); it is
+    enabled again afterwards if it was before."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
 def build(output: Path, *, show_source: bool = True, search: bool = True) -> list[str]:
     """Write the reference into ``output`` and return the messages of the warnings that are defects.
 
@@ -164,7 +183,7 @@ def build(output: Path, *, show_source: bool = True, search: bool = True) -> lis
     pdoc.render.configure(docformat="numpy", show_source=show_source, search=search)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        with indexed_class_sources(pdoc_tree):
+        with indexed_class_sources(pdoc_tree), paused_garbage_collection():
             pdoc.pdoc(*module_names(), output_directory=Path(output))
     messages = [str(item.message) for item in caught]
     return [text for text in messages if not any(pattern.search(text) for pattern in HARMLESS)]

@@ -25,7 +25,12 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack(np.broadcast_arrays(a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
+    first = a1 * b2 - a2 * b1                 # each component already has the broadcast shape of a and b
+    out = np.empty(first.shape + (3,), first.dtype)
+    out[..., 0] = first
+    out[..., 1] = a2 * b0 - a0 * b2
+    out[..., 2] = a0 * b1 - a1 * b0
+    return out
 
 
 # -- rotations (complex-step safe: no abs, no norm) -------------------------------------------
