@@ -248,15 +248,13 @@ class AxisJointFamily:
             self.eye = terms[0][0]
             self.k = np.concatenate([k for _, k, _ in terms]).reshape(-1, 1, 3, 3)
             self.k2 = np.concatenate([k2 for _, _, k2 in terms]).reshape(-1, 1, 3, 3)
-        numbers = [(float(joint.stiffness[0]), float(joint.damping[0]), float(joint.reference[0])) for joint in self.joints]
-        self.stiffness, self.damping, self.reference = (np.array(column).reshape(-1, 1, 1, 1) for column in zip(*numbers))
+        numbers = [(joint.stiffness[0], joint.damping[0], joint.reference[0]) for joint in self.joints]
+        self.stiffness, self.damping, self.reference = (np.array(column, dtype=float).reshape(-1, 1, 1, 1)
+                                                        for column in zip(*numbers))
         self.lawful = [bool(k or c) for k, c, _ in numbers]     # a law of its own (else: an input or none)
-        self.tangents = []
-        for joint in self.joints:
-            pair = (constant(NUMPY, -np.diag(joint.stiffness)), constant(NUMPY, -np.diag(joint.damping)))
-            for value in pair:
-                value.flags.writeable = False
-            self.tangents.append(pair)
+        self.tangents = np.negative(self.stiffness), np.negative(self.damping)    # each joint's -k, -c (1, 1, 1)
+        for value in self.tangents:
+            value.flags.writeable = False
 
     def motions(self, q: np.ndarray, v: np.ndarray, inputs: Mapping[str, Any]) -> list[JointMotion]:
         """Each joint's :func:`joint_motion` at the numpy state ``q (B, nq)``, ``v (B, nv)``."""
@@ -274,7 +272,7 @@ class AxisJointFamily:
         for i, joint in enumerate(self.joints):
             u = inputs.get(joint.inputs[0]) if joint.inputs else None
             if self.lawful[i] or u is not None:
-                tau, (tau_q, tau_v) = law[i] if u is None else law[i] + u, self.tangents[i]
+                tau, tau_q, tau_v = law[i] if u is None else law[i] + u, self.tangents[0][i], self.tangents[1][i]
             else:
                 tau = tau_q = tau_v = None
             if shift is None:
