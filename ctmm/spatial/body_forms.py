@@ -496,14 +496,11 @@ class SpatialScene:
             if len(self._families) > 64:                # load points change from call to call: no growth
                 self._families.clear()
             bodies = [model.bodies[j] for j, *_ in members]
-            count = max(len(self._outboard[j]) for j, *_ in members)
-            columns = np.zeros((len(members), 1, 3, 1 + len(members[0][4]) + count))
-            for k, (j, _, _, _, loads) in enumerate(members):
-                columns[k, 0, :, 0] = bodies[k].center_of_mass
-                for slot, (point, _) in enumerate(loads):
-                    columns[k, 0, :, 1 + slot] = point
-                for slot, point in enumerate(self._outboard[j].values()):
-                    columns[k, 0, :, 1 + len(loads) + slot] = point
+            count, zero = max(len(self._outboard[j]) for j, *_ in members), (0.0, 0.0, 0.0)
+            columns = np.array([[body.center_of_mass, *(point for point, *_ in loads), *self._outboard[j].values(),
+                                 *(zero,) * (count - len(self._outboard[j]))]
+                                for body, (j, _, _, _, loads) in zip(bodies, members)], dtype=float)
+            columns = columns.reshape(len(members), 1, -1, 3).swapaxes(-1, -2)
             family = self._families[key] = (
                 np.array([body.mass for body in bodies], dtype=float).reshape(-1, 1, 1, 1),
                 np.array([body.inertia for body in bodies], dtype=float).reshape(-1, 1, 3, 3), columns)
