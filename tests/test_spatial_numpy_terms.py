@@ -151,3 +151,88 @@ def test_batch_shape_is_numpys_broadcast_of_the_leads():
         assert batch_shape(*arrays) == np.broadcast_shapes(*(shape[:-2] for shape in shapes)), shapes
     with pytest.raises(ValueError):
         batch_shape(np.zeros((2, 3, 3)), np.zeros((3, 3, 3)))
+
+
+def _mixed_tree():
+    """Seven rigid bodies on mixed joints: a family at rest (a prismatic base: no angular velocity, its axes
+    unbatched), turning bodies with and without a translation, different outboard points, three bodies with one
+    load each (one in body axes), two with two and one without points."""
+    import ctmm.spatial as sp
+
+    def body(name, mass, points):
+        return sp.SpatialBody(name, mass, (0.03 * mass, 0.02 * mass, 0.01 * mass), (0.1 * mass, -0.05, -0.2), points)
+
+    elements = [body("base", 4.0, {"l": (0.2, 0.0, 0.1), "r": (-0.2, 0.1, 0.0), "top": (0.0, 0.0, 0.3)}),
+                body("a", 1.0, {"tip": (0.0, 0.0, -0.5)}), body("b", 0.8, {"tip": (0.1, 0.0, -0.4)}),
+                body("c", 1.2, {"tip": (0.0, 0.2, -0.5), "side": (0.1, 0.1, 0.0)}), body("d", 0.5, {"tip": (0, 0, -0.3)}),
+                body("e", 0.7, {}), body("f", 0.3, {}),
+                sp.Prismatic(name="slide", parent=None, child="base", axis=(1.0, 0.0, 0.0), stiffness=3.0),
+                sp.Revolute(name="j1", parent="base", child="a", point="l", axis=(0.0, 1.0, 0.0), actuated=True),
+                sp.Spherical(name="j2", parent="a", child="b", point="tip"),
+                sp.Universal(name="j3", parent="base", child="c", point="r"),
+                sp.Prismatic(name="j4", parent="c", child="d", point="tip", axis=(0.0, 0.0, 1.0), damping=0.2),
+                sp.Free(name="j5", parent="c", child="e", point="side"),
+                sp.Revolute(name="j6", parent="base", child="f", point="top", axis=(1.0, 0.0, 0.0)),
+                sp.Load(name="push", body="a", point="tip", force=(1.0, -2.0, 0.5), moment=(0.1, 0.0, 0.3)),
+                sp.Load(name="twist", body="d", point="tip", force=(0.0, 1.5, 0.0), moment=(0.2, -0.1, 0.0),
+                        axes="body"),
+                sp.Load(name="drag", body="b", point="tip", force=(-0.5, 0.0, 1.0)),
+                sp.Load(name="turn", body="b", moment=(0.0, 0.4, -0.2), axes="body")]
+    return sp.SpatialModel("mixed_tree", elements, gravity=(0.3, -0.2, -9.81))
+
+
+def test_scene_terms_of_rigid_families_equal_the_ops_statement_per_body():
+    """``SpatialScene.terms`` on numpy evaluates the rigid bodies of a family (equal numbers of loads) and the revolute
+    and the prismatic joints (with and without law or input) each in one call over the members stacked on a leading
+    axis; every body's terms (``M, h, Kin, c, RF``), joint terms and state equal the ops statement evaluated per body
+    on casadi numbers (the generic path: one body at a time, no stacking), for a batch
+    of three states and for one state, with extra wrenches (world and body axes) on three bodies."""
+    from ctmm.spatial.body_forms import SpatialScene
+    from ctmm.spatial.joint_kinematics import AxisJointFamily, joint_motion
+
+    model = _mixed_tree()
+    scene = SpatialScene(model)
+    nq, nv = model.n_positions, model.n_velocities
+    for batch in (3, 1):
+        q = RNG.normal(size=(batch, nq)) * 0.4
+        for joint, layout in zip(model.joints, model.layout):
+            if joint.kind in ("spherical", "free"):
+                q[:, layout.position.stop - 4:layout.position.stop] += [1.0, 0.0, 0.0, 0.0]
+        v = RNG.normal(size=(batch, nv))
+        torque = RNG.normal(size=(batch, 1, 1))
+        extra = {1: [(np.array([0.0, 0.1, -0.3]), RNG.normal(size=(batch, 6, 1)))],
+                 5: [(np.array([0.1, 0.0, 0.2]), RNG.normal(size=(batch, 6, 1)))],
+                 6: [(np.array([0.0, 0.3, 0.0]), RNG.normal(size=(1, 6, 1)), "body")]}
+        bodies, joints, states = scene.terms(NUMPY, q, v, 0.4, {"j1.torque": torque}, extra)
+        assert len({id(terms.M.base) for terms in bodies if terms.M.base is not None}) < len(bodies)  # stacked
+        for kind in ("revolute", "prismatic"):                              # the joint families on their own
+            members = [j for j, joint in enumerate(model.joints) if joint.kind == kind]
+            family = AxisJointFamily([model.joints[j] for j in members],
+                                     [model.layout[j].position.start for j in members],
+                                     [model.layout[j].velocity.start for j in members])
+            for j, motion in zip(members, family.motions(q, v, {"j1.torque": torque})):
+                joint, layout = model.joints[j], model.layout[j]
+                for k in range(batch):
+                    u = casadi.DM(torque[k]) if joint.inputs else None
+                    reference = joint_motion(CASADI, joint, [casadi.DM(q[k, layout.position.start])],
+                                             [casadi.DM(v[k, layout.velocity.start])], u)
+                    for field in ("rotation", "translation", "S", "bias", "linear", "angular", "tau", "tau_q", "tau_v"):
+                        got, expected = getattr(motion, field), getattr(reference, field)
+                        assert (got is None) == (expected is None), (joint.name, field)
+                        if got is not None:
+                            _close(got, expected, k, f"{joint.name} {field}")
+        for k in range(batch):
+            reference_bodies, reference_joints, reference_states = scene.terms(
+                CASADI, casadi.DM(q[k]), casadi.DM(v[k]), 0.4, {"j1.torque": casadi.DM(torque[k])},
+                {j: [(entry[0], casadi.DM(entry[1][min(k, entry[1].shape[0] - 1)]), *entry[2:]) for entry in entries]
+                 for j, entries in extra.items()})
+            for terms, reference in zip(bodies, reference_bodies):
+                _compare(terms, reference, k)
+            for terms, reference in zip(joints, reference_joints):
+                for field in ("S", "c", "tau", "tau_q", "tau_v"):
+                    assert (getattr(terms, field) is None) == (getattr(reference, field) is None), field
+                    if getattr(reference, field) is not None:
+                        _close(getattr(terms, field), getattr(reference, field), k, field)
+            for state, reference in zip(states, reference_states):
+                for field in ("rotation", "origin", "velocity", "omega", "inboard"):
+                    _close(getattr(state, field), getattr(reference, field), k, field)

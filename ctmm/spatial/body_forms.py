@@ -24,7 +24,7 @@ from ..errors import ModelError
 from ..ops import NUMPY, Ops, batch_column, batch_scalars, batch_shape
 from ..protocol import BodyTerms, JointTerms
 from .frames import block_diagonal, constant, cross, skew
-from .joint_kinematics import JointMotion, joint_motion
+from .joint_kinematics import AxisJointFamily, JointMotion, joint_motion
 from .beam_terms import spatial_beam_terms
 from .model import SpatialModel, input_values
 from ..signals import signal_parameters, symbolic_signal
@@ -110,14 +110,7 @@ def _numpy_rigid_body_terms(mass: float, inertia: np.ndarray, center_of_mass: np
         return r if offset is None else r + offset
 
     r_c = located(center_of_mass)
-    inertia_world = np.matmul(np.matmul(rotation, np.asarray(inertia, dtype=float)), rotation.swapaxes(-1, -2))
-    rc_x = skew(NUMPY, r_c)
-    lower = inertia_world - np.matmul(rc_x, rc_x) * mass
-    M = np.empty(batch_shape(rc_x, lower) + (6, 6), dtype=lower.dtype)
-    M[..., :3, :3] = _EYE3 * mass
-    M[..., :3, 3:] = rc_x * -mass
-    M[..., 3:, :3] = rc_x * mass
-    M[..., 3:, 3:] = lower
+    M, inertia_world = _numpy_mass_matrix(mass, np.asarray(inertia, dtype=float), rotation, r_c)
     g = np.asarray(gravity, dtype=float).reshape(1, 3, 1)
     h_lin = g * -mass
     h_ang = cross(NUMPY, r_c, g) * -mass
@@ -147,6 +140,87 @@ def _numpy_rigid_body_terms(mass: float, inertia: np.ndarray, center_of_mass: np
         Kin[name] = K
         RF[name] = K.swapaxes(-1, -2)
     return BodyTerms(M=M, h=h, Kin=Kin, c=c, RF=RF)
+
+
+def _numpy_mass_matrix(mass: Any, inertia: np.ndarray, rotation: np.ndarray, r_c: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """``(M, I_world)`` of :func:`rigid_body_terms` on numpy, filled into one allocation (leading axes broadcast)."""
+    inertia_world = np.matmul(np.matmul(rotation, inertia), rotation.swapaxes(-1, -2))
+    rc_x = skew(NUMPY, r_c)
+    lower = inertia_world - np.matmul(rc_x, rc_x) * mass
+    M = np.empty(batch_shape(rc_x, lower) + (6, 6), dtype=lower.dtype)
+    M[..., :3, :3] = _EYE3 * mass
+    M[..., :3, 3:] = rc_x * -mass
+    M[..., 3:, :3] = rc_x * mass
+    M[..., 3:, 3:] = lower
+    return M, inertia_world
+
+
+def _numpy_family_terms(mass: np.ndarray, inertia: np.ndarray, columns: np.ndarray, rotation: np.ndarray,
+                        offset: Any, omega: Any, gravity: np.ndarray, wrenches: Sequence[np.ndarray]
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
+    """:func:`rigid_body_terms` of a family of ``n`` rigid bodies at once on numpy (the same operations on the same
+    operands as :func:`_numpy_rigid_body_terms`, every operand with a leading family axis; the located points of a
+    body as the columns of one product, the cross products of equal operands as the columns of one call).
+
+    Parameters
+    ----------
+    mass : (n, 1, 1, 1) array
+        [kg].
+    inertia : (n, 1, 3, 3) array
+        About the centre of mass, body axes [kg m^2].
+    columns : (n, 1, 3, 1 + L + P) array
+        Body axes [m]: the centre of mass, the ``L`` load points, the ``P`` outboard points (padded with zeros).
+    rotation : (n, B, 3, 3)
+    offset, omega : (n, B, 3, 1) or None
+        As in :func:`rigid_body_terms` (``None``: zero for every body).
+    gravity : (3,) array
+        [m/s^2].
+    wrenches : sequence of ``L`` (n, B, 6, 1)
+        Applied ``[f ; m]`` [N, N m] at the load points (world axes).
+
+    Returns
+    -------
+    M (n, B, 6, 6), h (n, B, 6, 1), Kin (n, B, P, 6, 6) and c (n, B, P, 6, 1) (``(1, 6, 1)`` zeros: ``omega`` None).
+    """
+    located = np.matmul(rotation, columns)
+    if offset is not None:
+        located = located + offset
+    loaded = 1 + len(wrenches)
+    r_c = located[..., 0:1]
+    M, inertia_world = _numpy_mass_matrix(mass, inertia, rotation, r_c)
+    g = np.asarray(gravity, dtype=float).reshape(1, 3, 1)
+    h_lin = g * -mass
+    moving = located if loaded == 1 else np.concatenate([r_c, located[..., loaded:]], axis=-1)   # r_c, points
+    if omega is None:
+        h_ang = cross(NUMPY, r_c, g) * -mass
+    else:
+        accelerations = cross(NUMPY, omega, cross(NUMPY, omega, moving))
+        centripetal = accelerations[..., 0:1]
+        h_lin = h_lin + centripetal * mass
+        arms = np.concatenate([r_c, omega, r_c], axis=-1)
+        turned = cross(NUMPY, arms, np.concatenate([np.broadcast_to(g, r_c.shape), np.matmul(inertia_world, omega),
+                                                    centripetal], axis=-1))
+        h_ang = turned[..., 0:1] * -mass + turned[..., 1:2] + turned[..., 2:3] * mass
+    if wrenches:
+        forces = np.concatenate([wrench[..., 0:3, 0:1] for wrench in wrenches], axis=-1)
+        moments = cross(NUMPY, located[..., 1:loaded], forces)
+        for slot, wrench in enumerate(wrenches):
+            h_lin = h_lin - forces[..., slot:slot + 1]
+            h_ang = h_ang - wrench[..., 3:6, 0:1] - moments[..., slot:slot + 1]
+    h = np.empty(batch_shape(h_lin, h_ang) + (6, 1), dtype=np.result_type(h_lin, h_ang))
+    h[..., :3, :] = h_lin
+    h[..., 3:, :] = h_ang
+    points = moving[..., 1:].swapaxes(-1, -2)[..., None]          # (n, B, P, 3, 1)
+    K = np.zeros(points.shape[:-2] + (6, 6), dtype=points.dtype)
+    K[..., _DIAGONAL6, _DIAGONAL6] = 1.0
+    K[..., :3, 3:] = skew(NUMPY, points) * -1.0
+    if omega is None:
+        return M, h, K, np.zeros((1, 6, 1))
+    rows = accelerations[..., 1:].swapaxes(-1, -2)[..., None]
+    c = np.zeros(rows.shape[:-2] + (6, 1), dtype=rows.dtype)
+    c[..., :3, :] = rows
+    return M, h, K, c
 
 
 _EYE3 = np.eye(3)
@@ -275,6 +349,14 @@ class SpatialScene:
                 used[model.parent[j]].add(joint.point)
         self._outboard = [{name: p for name, p in body.points.items() if name in names}
                           for body, names in zip(model.bodies, used)]
+        self._families: dict = {}           # members -> their stacked numbers (:meth:`_rigid_family_terms`)
+        kinds: dict = {}                    # revolute and prismatic joints (not driven, no nonlinear law) by kind
+        for j, joint in enumerate(model.joints):
+            if joint.kind in ("revolute", "prismatic") and not joint.driven and joint.law is None:
+                kinds.setdefault(joint.kind, []).append(j)
+        self._joint_families = [(members, AxisJointFamily(*zip(*((model.joints[j], model.layout[j].position.start,
+                                                                   model.layout[j].velocity.start) for j in members))))
+                                for members in kinds.values() if len(members) > 1]
 
     def terms(self, ops: Ops, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None,
               wrenches: Mapping[int, Sequence[tuple[np.ndarray, Any]]] | None = None, turn: Any = None,
@@ -311,18 +393,25 @@ class SpatialScene:
         qs, vs = _scalars(ops, q, model.n_positions), _scalars(ops, v, model.n_velocities)
         states: list[BodyState] = []
         point_frames: list[dict] = []
-        bodies, joints = [], []
+        bodies, joints, pending = [], [], []
+        motions: dict = {}                          # numpy: the joint families' motions, each family at once
+        if ops.name == "numpy" and self._joint_families:
+            q_rows, v_rows = (values if np.ndim(values) == 2 else np.asarray(values)[None] for values in (q, v))
+            for members, family in self._joint_families:
+                motions.update(zip(members, family.motions(q_rows, v_rows, inputs)))
         for j, (body, joint, layout) in enumerate(zip(model.bodies, model.joints, model.layout)):
-            if joint.driven:
-                qj = [_signal_column(ops, [f], t) for f in joint.position]
-                vj = [_signal_column(ops, [f], t) for f in joint.rate]
-                acc = [_signal_column(ops, [f], t) for f in joint.acceleration]
-                if driven is not None and j in driven:
-                    qj, vj = list(driven[j][0]), list(driven[j][1])
-            else:
-                qj, vj, acc = qs[layout.position], vs[layout.velocity], None
-            u = inputs.get(joint.inputs[0]) if joint.inputs else None
-            rel = joint_motion(ops, joint, qj, vj, u, acc)
+            rel = motions.get(j)
+            if rel is None:
+                if joint.driven:
+                    qj = [_signal_column(ops, [f], t) for f in joint.position]
+                    vj = [_signal_column(ops, [f], t) for f in joint.rate]
+                    acc = [_signal_column(ops, [f], t) for f in joint.acceleration]
+                    if driven is not None and j in driven:
+                        qj, vj = list(driven[j][0]), list(driven[j][1])
+                else:
+                    qj, vj, acc = qs[layout.position], vs[layout.velocity], None
+                u = inputs.get(joint.inputs[0]) if joint.inputs else None
+                rel = joint_motion(ops, joint, qj, vj, u, acc)
             par = model.parent[j]
             if par < 0:
                 R_p, o_p, v_p, w_p = None, None, None, None
@@ -374,10 +463,60 @@ class SpatialScene:
                 point_frames.append(frames)
                 continue
             point_frames.append({})
+            if ops.name == "numpy":                 # the rigid bodies' terms after the tree, per family at once
+                pending.append((j, R_c, offset, w_c, loads))
+                bodies.append(None)
+                continue
             bodies.append(rigid_body_terms(ops, mass=body.mass, inertia=body.inertia,
                                            center_of_mass=body.center_of_mass, points=self._outboard[j], rotation=R_c,
                                            offset=offset, omega=w_c, gravity=model.gravity, loads=loads))
+        groups: dict = {}                           # rigid bodies by their number of loads: one evaluation each
+        for entry in pending:
+            groups.setdefault(len(entry[4]), []).append(entry)
+        for members in groups.values():
+            for j, terms in zip((entry[0] for entry in members), self._rigid_family_terms(members)):
+                bodies[j] = terms
         return bodies, joints, states
+
+    def _rigid_family_terms(self, members: list) -> list[BodyTerms]:
+        """The numpy terms of rigid bodies ``(j, rotation, offset, omega, loads)`` with equal numbers of loads: one
+        :func:`_numpy_family_terms` over the bodies stacked on a leading axis (their numbers stacked once per
+        family), split into each body's terms (views); one body: :func:`rigid_body_terms`."""
+        model = self.model
+        if len(members) == 1:
+            j, rotation, offset, omega, loads = members[0]
+            body = model.bodies[j]
+            return [rigid_body_terms(NUMPY, mass=body.mass, inertia=body.inertia, center_of_mass=body.center_of_mass,
+                                     points=self._outboard[j], rotation=rotation, offset=offset, omega=omega,
+                                     gravity=model.gravity, loads=loads)]
+        key = tuple(entry[0] for entry in members) + tuple(np.asarray(p, dtype=float).tobytes() for entry in members
+                                                           for p, *_ in entry[4])
+        family = self._families.get(key)
+        if family is None:
+            if len(self._families) > 64:                # load points change from call to call: no growth
+                self._families.clear()
+            bodies = [model.bodies[j] for j, *_ in members]
+            count, zero = max(len(self._outboard[j]) for j, *_ in members), (0.0, 0.0, 0.0)
+            columns = np.array([[body.center_of_mass, *(point for point, *_ in loads), *self._outboard[j].values(),
+                                 *(zero,) * (count - len(self._outboard[j]))]
+                                for body, (j, _, _, _, loads) in zip(bodies, members)], dtype=float)
+            columns = columns.reshape(len(members), 1, -1, 3).swapaxes(-1, -2)
+            family = self._families[key] = (
+                np.array([body.mass for body in bodies], dtype=float).reshape(-1, 1, 1, 1),
+                np.array([body.inertia for body in bodies], dtype=float).reshape(-1, 1, 3, 3), columns)
+        mass, inertia, columns = family
+        rotation = _stacked([entry[1] for entry in members], (3, 3))
+        offset = _stacked([entry[2] for entry in members], (3, 1))
+        omega = _stacked([entry[3] for entry in members], (3, 1))
+        wrenches = [_stacked([entry[4][slot][1] for entry in members], (6, 1)) for slot in range(len(members[0][4]))]
+        M, h, K, c = _numpy_family_terms(mass, inertia, columns, rotation, offset, omega, model.gravity, wrenches)
+        out = []
+        for k, (j, *_) in enumerate(members):
+            Kin = {name: K[k, ..., slot, :, :] for slot, name in enumerate(self._outboard[j])}
+            out.append(BodyTerms(M[k], h[k], Kin, {name: c if omega is None else c[k, ..., slot, :, :]
+                                                   for slot, name in enumerate(self._outboard[j])},
+                                 {name: value.swapaxes(-1, -2) for name, value in Kin.items()}))
+        return out
 
     def sweep(self, ops: Ops, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None,
               wrenches: Mapping[int, Sequence[tuple[np.ndarray, Any]]] | None = None) -> Articulated:
@@ -402,6 +541,20 @@ class SpatialScene:
         ``wrenches`` as in :meth:`terms`)."""
         q, v = self.model.check_state(q, v)
         return self.sweep(NUMPY, q, v, t, self.numpy_inputs(inputs, t, q.shape[0]), wrenches)
+
+
+def _stacked(values: list, shape: tuple[int, int]) -> Any:
+    """Numpy ops values ``(B, *shape)`` (or ``None``: zero) of a family's bodies stacked on a leading axis
+    ``(n, B, *shape)`` (their batches broadcast); ``None`` when every one is ``None``."""
+    present = [value for value in values if value is not None]
+    if not present:
+        return None
+    lead = batch_shape(*present)
+    if len(present) < len(values) or any(value.shape[:-2] != lead for value in present):
+        dtype = np.result_type(*present)
+        values = [np.zeros(lead + shape, dtype=dtype) if value is None else np.broadcast_to(value, lead + shape)
+                  for value in values]
+    return np.stack(values)
 
 
 def _turned_wrench(ops: Ops, rotation: Any, wrench: Any) -> Any:

@@ -14,7 +14,7 @@ import numpy as np
 from ..ops import Ops, batch_shape
 
 __all__ = ["constant", "entry", "column", "skew", "cross", "axis_rotation", "quaternion_rotation",
-           "quaternion_rate", "block_diagonal"]
+           "quaternion_rate", "block_diagonal", "axis_terms"]
 
 
 def constant(ops: Ops, array: Any) -> Any:
@@ -46,10 +46,10 @@ def skew(ops: Ops, v: Any) -> Any:
         if v.shape == (1, 3, 1) and v.dtype == np.float64:                   # one state: from Python floats
             x, y, z = v.ravel().tolist()
             return np.array(((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0))).reshape(1, 3, 3)
-        x, y, z = v[:, 0, 0], v[:, 1, 0], v[:, 2, 0]
-        out = np.zeros(v.shape[:1] + (3, 3), dtype=v.dtype)
-        out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -z, y, -x
-        out[:, 1, 0], out[:, 2, 0], out[:, 2, 1] = z, -y, x
+        x, y, z = v[..., 0, 0], v[..., 1, 0], v[..., 2, 0]          # any leading shape (a family of batches)
+        out = np.zeros(v.shape[:-2] + (3, 3), dtype=v.dtype)
+        out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -z, y, -x
+        out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = z, -y, x
         return out
     x, y, z = (entry(ops, v, i) for i in range(3))
     return ops.block([[0.0, z * -1.0, y], [z, 0.0, x * -1.0], [y * -1.0, x, 0.0]])
@@ -62,23 +62,23 @@ def cross(ops: Ops, a: Any, b: Any) -> Any:
             a0, a1, a2 = a.ravel().tolist()                                     # the same IEEE operations
             b0, b1, b2 = b.ravel().tolist()
             return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0)).reshape(1, 3, 1)
-        a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
-        b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
+        a0, a1, a2 = a[..., 0, :], a[..., 1, :], a[..., 2, :]     # any leading shape (a family of batches)
+        b0, b1, b2 = b[..., 0, :], b[..., 1, :], b[..., 2, :]
         first = a1 * b2 - a2 * b1                                   # (B, k): filled, not np.stack (its checks)
-        out = np.empty(first.shape[:1] + (3,) + first.shape[1:], dtype=first.dtype)
-        out[:, 0], out[:, 1], out[:, 2] = first, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+        out = np.empty(first.shape[:-1] + (3,) + first.shape[-1:], dtype=first.dtype)
+        out[..., 0, :], out[..., 1, :], out[..., 2, :] = first, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
         return out
     return ops.matmul(skew(ops, a), b)
 
 
 def axis_rotation(ops: Ops, axis: np.ndarray, angle: Any) -> Any:
     """``Rot(axis, angle) = I + sin(angle) [a]x + (1 - cos(angle)) [a]x^2`` for a unit numeric ``axis``."""
-    eye, k, k2 = _axis_terms(ops, tuple(np.asarray(axis, dtype=float).reshape(3).tolist()))
+    eye, k, k2 = axis_terms(ops, tuple(np.asarray(axis, dtype=float).reshape(3).tolist()))
     return eye + k * ops.sin(angle) + k2 * (1.0 - ops.cos(angle))
 
 
 @lru_cache(maxsize=256)
-def _axis_terms(ops: Ops, axis: tuple[float, float, float]) -> tuple[Any, Any, Any]:
+def axis_terms(ops: Ops, axis: tuple[float, float, float]) -> tuple[Any, Any, Any]:
     """``(I, [a]x, [a]x^2)`` of an axis as constants of ``ops`` (numpy ones read-only: shared)."""
     a = np.asarray(axis)
     k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])

@@ -10,14 +10,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from ..ops import NUMPY, Ops, batch_shape
-from .frames import axis_rotation, column, constant, cross, quaternion_rotation, skew
+from .frames import axis_rotation, axis_terms, column, constant, cross, quaternion_rotation, skew
 
-__all__ = ["JointMotion", "joint_motion"]
+__all__ = ["JointMotion", "joint_motion", "AxisJointFamily"]
 
 @dataclass(frozen=True)
 class JointMotion:
@@ -220,3 +220,63 @@ def _stacked(values: list) -> np.ndarray:
         if all(type(e) is np.ndarray and e.ndim == 3 and e.shape[0] == lead and e.dtype == dtype for e in values):
             return np.concatenate(values, axis=-2)
     return column(NUMPY, values)
+
+
+class AxisJointFamily:
+    """The revolute (or the prismatic) joints of a model that are neither driven nor carry a nonlinear law:
+    :func:`joint_motion` of all of them at once on numpy (the same operations on the same operands, every operand
+    with a leading axis over the joints; their numbers stacked once), split into each joint's motion (views).
+
+    Parameters
+    ----------
+    joints : sequence of Revolute or of Prismatic joints (one kind)
+    positions, velocities : sequence of int
+        Each joint's coordinate and velocity column in the state.
+    """
+
+    def __init__(self, joints: Sequence, positions: Sequence[int], velocities: Sequence[int]) -> None:
+        self.joints = tuple(joints)
+        self.kind = self.joints[0].kind
+        self.positions, self.velocities = np.asarray(positions, dtype=int), np.asarray(velocities, dtype=int)
+        start = 3 if self.kind == "revolute" else 0
+        constants = [_axis_columns(NUMPY, joint.axis, start) for joint in self.joints]
+        self.axes = np.concatenate([axis for axis, _ in constants]).reshape(-1, 1, 3, 1)
+        self.twists = [twist for _, twist in constants]
+        if self.kind == "revolute":
+            terms = [axis_terms(NUMPY, tuple(np.asarray(joint.axis, dtype=float).reshape(3).tolist()))
+                     for joint in self.joints]
+            self.eye = terms[0][0]
+            self.k = np.concatenate([k for _, k, _ in terms]).reshape(-1, 1, 3, 3)
+            self.k2 = np.concatenate([k2 for _, _, k2 in terms]).reshape(-1, 1, 3, 3)
+        numbers = [(joint.stiffness[0], joint.damping[0], joint.reference[0]) for joint in self.joints]
+        self.stiffness, self.damping, self.reference = (np.array(column, dtype=float).reshape(-1, 1, 1, 1)
+                                                        for column in zip(*numbers))
+        self.lawful = [bool(k or c) for k, c, _ in numbers]     # a law of its own (else: an input or none)
+        self.tangents = np.negative(self.stiffness), np.negative(self.damping)    # each joint's -k, -c (1, 1, 1)
+        for value in self.tangents:
+            value.flags.writeable = False
+
+    def motions(self, q: np.ndarray, v: np.ndarray, inputs: Mapping[str, Any]) -> list[JointMotion]:
+        """Each joint's :func:`joint_motion` at the numpy state ``q (B, nq)``, ``v (B, nv)``."""
+        count = len(self.joints)
+        angle = q[:, self.positions].T.reshape(count, -1, 1, 1)
+        rate = v[:, self.velocities].T.reshape(count, -1, 1, 1)
+        moved = self.axes * rate
+        law = angle * -self.stiffness + self.stiffness * self.reference - rate * self.damping
+        if self.kind == "revolute":
+            rotation = self.eye + self.k * np.sin(angle) + self.k2 * (1.0 - np.cos(angle))
+            shift = None
+        else:
+            rotation, shift = NUMPY.eye(3), self.axes * angle
+        out = []
+        for i, joint in enumerate(self.joints):
+            u = inputs.get(joint.inputs[0]) if joint.inputs else None
+            if self.lawful[i] or u is not None:
+                tau, tau_q, tau_v = law[i] if u is None else law[i] + u, self.tangents[0][i], self.tangents[1][i]
+            else:
+                tau = tau_q = tau_v = None
+            if shift is None:
+                out.append(JointMotion(rotation[i], None, self.twists[i], None, None, moved[i], tau, tau_q, tau_v))
+            else:
+                out.append(JointMotion(rotation, shift[i], self.twists[i], None, moved[i], None, tau, tau_q, tau_v))
+        return out
