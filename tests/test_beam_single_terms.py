@@ -92,3 +92,24 @@ def test_the_explicit_sweep_terms_equal_the_batched_body_terms():
         for (K, c, R), batched in zip(ends, ends1):
             for got, expected in zip((K, c, R), batched):
                 _close(got, expected[0], f"body {j}: end terms")
+
+
+def test_the_sweep_reads_the_ends_that_carry_a_child_and_they_are_the_full_terms():
+    """``all_terms(carrying=True)`` (the explicit sweep's call) gives of each body the terms of the ends that carry a
+    child, equal bit for bit to the full terms, and ``None`` for the others (a beam's free tip, a link's tip)."""
+    common = dict(length=1.3, bending_stiffness=5.0, mass_per_length=0.7, n_modes=3)
+    model = PlanarModel("tree", [Pinned("o", child="b1"), ModalBeam("b1", **common, outboard={"mid": 0.6, "tip": 1.3}),
+                                 SmoothHinge("h", parent="b1.mid", child="l"),
+                                 RigidBody("l", mass=0.4, inertia=0.02, outboard={"end": (0.7, 0.0)}),
+                                 FixedMounting("w", parent="b1.tip", child="b2", angle=-0.4), ModalBeam("b2", **common)])
+    system = model.flexible_system
+    q, v = 0.1 * RNG.normal(size=model.n_coordinates), RNG.normal(size=model.n_coordinates)
+    full, _ = system.all_terms(q, v, 0.2)
+    carried, _ = system.all_terms(q, v, 0.2, carrying=True)
+    assert [[e is not None for e in ends] for _, _, ends in carried] == [[True, True], [False], [False]]
+    for (M, h, ends), (Mc, hc, ends_c) in zip(full, carried):
+        np.testing.assert_array_equal(Mc, M)
+        np.testing.assert_array_equal(hc, h)
+        for end, end_c in zip(ends, ends_c):
+            for got, expected in zip(end_c or (), end):
+                np.testing.assert_array_equal(got, expected)

@@ -138,3 +138,20 @@ def test_quaternion_rotation_and_rate_are_scipys(batch):
     later = np.c_[later[:, 3:], later[:, :3]] * np.linalg.norm(q, axis=1, keepdims=True)
     later *= np.sign(np.sum(later * q, axis=1, keepdims=True))          # the same sign as q
     np.testing.assert_allclose(quaternion_rate(q, omega), (later - q) / h, atol=1e-6 * np.abs(q).max())
+
+
+def test_one_real_system_is_solved_as_np_linalg_solve():
+    """A 2-D float system (the single-state sweeps' modal blocks and pivots) gives ``np.linalg.solve``'s values bit
+    for bit, as a C-ordered array; an exactly singular matrix raises ``LinAlgError``; batches, complex and 1-D
+    right-hand sides keep the general path."""
+    for n, k in [(1, 1), (3, 4), (5, 1), (9, 3)]:
+        for scale in (1e-6, 1.0, 1e6):
+            a, b = scale * RNG.normal(size=(n, n)), RNG.normal(size=(n, k))
+            got = NUMPY.solve(a, b)
+            assert got.flags.c_contiguous and got.shape == (n, k)
+            np.testing.assert_array_equal(got, np.linalg.solve(a, b))
+    with pytest.raises(np.linalg.LinAlgError):
+        NUMPY.solve(np.zeros((3, 3)), np.ones((3, 2)))
+    a, b = RNG.normal(size=(4, 3, 3)), RNG.normal(size=(4, 3, 2))
+    np.testing.assert_array_equal(NUMPY.solve(a, b), np.linalg.solve(a, b))
+    np.testing.assert_array_equal(NUMPY.solve(a[0] * 1j, b[0]), np.linalg.solve(a[0] * 1j, b[0]))

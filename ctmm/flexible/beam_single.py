@@ -27,7 +27,7 @@ __all__ = ["single_terms"]
 
 
 def single_terms(data: Any, theta: float, omega: float, eta: np.ndarray, eta_dot: np.ndarray, t: float,
-                 gravity: Sequence[float]) -> tuple[np.ndarray, np.ndarray, list]:
+                 gravity: Sequence[float], ends: Sequence[int] | None = None) -> tuple[np.ndarray, np.ndarray, list]:
     """Terms of :meth:`ctmm.flexible.beam.BeamData.terms` at one real state (no batch axis).
 
     Parameters
@@ -42,6 +42,9 @@ def single_terms(data: Any, theta: float, omega: float, eta: np.ndarray, eta_dot
         Time [s] (loads, modal forces and laws).
     gravity : (2,)
         [m/s^2], global axes.
+    ends : sequence of int, optional
+        Indices of the ends whose terms are wanted (the explicit sweep reads only the ends that carry a child);
+        the others are ``None`` in the returned list.  Default: every end.
 
     Returns
     -------
@@ -126,9 +129,8 @@ def single_terms(data: Any, theta: float, omega: float, eta: np.ndarray, eta_dot
     M[:2] = R @ M[:2]
     M[:, :2] = M[:, :2] @ R.T
     h[:2] = R @ h[:2]
-    ends = [_single_end(d, k, Kin0, V, Vd, sl, q, qd, theta, omega, R)
-            for k, Kin0 in enumerate(d.constant_ends)]
-    return M, h, ends
+    return M, h, [_single_end(d, k, Kin0, V, Vd, sl, q, qd, theta, omega, R) if ends is None or k in ends else None
+                  for k, Kin0 in enumerate(d.constant_ends)]
 
 
 def _single_end(d: Any, k: int, constant_kin: np.ndarray, V: np.ndarray, Vd: np.ndarray, slices: dict,

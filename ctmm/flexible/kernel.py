@@ -114,23 +114,26 @@ class FlexibleSystem:
         self.coordinate_rows = rows
         # the tree of the one sweep; a body's points are keyed by their index in its terms' end list
         self.tree = Tree(tuple(self.parent), tuple(None if p < 0 else e for p, e in zip(self.parent, self.pend)), 3)
+        # per body the ends that carry a child: the only points whose terms the sweep reads
+        self.carrying = [tuple(sorted({e for p, e in zip(self.parent, self.pend) if p == j})) for j in range(nb)]
 
     # -- per-body terms -------------------------------------------------------------------
-    def rigid_terms(self, j: int, theta, omega, t: float, loads):
+    def rigid_terms(self, j: int, theta, omega, t: float, loads, ends=None):
         """Batched complex-safe rigid-body relations: the one statement
         :func:`ctmm.planar.body_forms.rigid_body_terms` (FORMULAS 3.4), in this kernel's layout
-        ``M (B, 3, 3)``, ``h (B, 3)``, per end ``(Kin, c (B, 3), RF, theta, omega)``."""
+        ``M (B, 3, 3)``, ``h (B, 3)``, per end ``(Kin, c (B, 3), RF, theta, omega)`` (``ends``: indices of the
+        wanted ends, the others ``None``; default every end)."""
         m = self.model
         body_loads = [(*m.load_point[k], *loads[k]) for k in self.rigid_load_rows if m.load_body[k] == j]
         if theta.shape[0] == 1:             # one evaluation (a rigid body has no modal directions): numpy scalars
             theta_j, omega_j = theta[0], omega[0]
         else:
             theta_j, omega_j = theta[:, None, None], omega[:, None, None]
+        points = self.end_points[j] if ends is None else {e: p for e, p in self.end_points[j].items() if e in ends}
         terms = rigid_body_terms(NUMPY, mass=self.mass[j], inertia=self.inertia[j], center_of_mass=self.com[j],
-                                 points=self.end_points[j], gravity=self.gravity, theta=theta_j, omega=omega_j,
-                                 loads=body_loads)
-        ends = [(terms.Kin[e], terms.c[e][:, :, 0], terms.RF[e], theta, omega) for e in self.end_points[j]]
-        return terms.M, terms.h[:, :, 0], ends
+                                 points=points, gravity=self.gravity, theta=theta_j, omega=omega_j, loads=body_loads)
+        return terms.M, terms.h[:, :, 0], [(terms.Kin[e], terms.c[e][:, :, 0], terms.RF[e], theta, omega)
+                                           if e in points else None for e in self.end_points[j]]
 
     def body_terms(self, j: int, theta, omega, eta, eta_dot, t: float, loads):
         """Terms of body ``j`` (batched over the leading axis of ``theta``)."""
@@ -146,19 +149,25 @@ class FlexibleSystem:
         eta_dot = [qdot[idx] for idx in self.modal_index]
         return theta, omega, eta, eta_dot
 
-    def all_terms(self, q, qdot, t: float, driven: list | None = None):
+    def all_terms(self, q, qdot, t: float, driven: list | None = None, *, carrying: bool = False):
+        """Unbatched terms of every body at one real state (see :meth:`sweep`) and the state; ``carrying=True``:
+        only the ends that carry a child (the ones the sweep reads), ``None`` for the others."""
         theta, omega, eta, eta_dot = self.state(q, qdot, t, driven)
         loads = self.model.loads(t) if len(self.model.load_body) else np.zeros((0, 3))
         terms = []
         for j in range(self.nb):
+            wanted = self.carrying[j] if carrying else None
             if j in self.at_state:                      # one real state: the body's unbatched fast path
                 M, h, ends = self.at_state[j].terms_at_state(float(theta[j]), float(omega[j]), eta[j], eta_dot[j], t,
-                                                             self.gravity)
-                terms.append([M, h, [(K, c, R) for K, c, R, _, _ in ends]])
-                continue
-            M, h, ends = self.body_terms(j, theta[j:j + 1], omega[j:j + 1], eta[j][None, :], eta_dot[j][None, :], t,
-                                         loads)
-            terms.append([M[0], h[0], [(K[0], c[0], R[0]) for K, c, R, _, _ in ends]])
+                                                             self.gravity, wanted)
+                terms.append([M, h, [None if e is None else e[:3] for e in ends]])
+            elif j in self.beam_data:
+                M, h, ends = self.body_terms(j, theta[j:j + 1], omega[j:j + 1], eta[j][None, :], eta_dot[j][None, :],
+                                             t, loads)
+                terms.append([M[0], h[0], [(K[0], c[0], R[0]) for K, c, R, _, _ in ends]])
+            else:
+                M, h, ends = self.rigid_terms(j, theta[j:j + 1], omega[j:j + 1], t, loads, wanted)
+                terms.append([M[0], h[0], [None if e is None else (e[0][0], e[1][0], e[2][0]) for e in ends]])
         return terms, (theta, omega, eta, eta_dot, loads)
 
     def hinge_torques(self, q, qdot, theta, omega, t: float) -> np.ndarray:
@@ -192,12 +201,28 @@ class FlexibleSystem:
         SimulationError
             A singular modal matrix or articulated inertia, naming the element.
         """
+        out, _ = self._articulated(terms, kappa, tau, alpha_driven, full)
+        x = [xj[:, 0] for xj in out.x]
+        if not full:
+            return x, None, None, None
+        F = np.concatenate(out.force, axis=1).T
+        alpha = np.array([0.0 if r is None else r[-1, 0] for r in out.relative])
+        AO = np.concatenate([xj[:3] for xj in out.x], axis=1).T   # A_O = A - S a_rel: revolute, driven S = e3
+        AO[:, 2] -= alpha
+        if self.free_base:
+            AO[self.free_base] = 0.0                 # a free base hangs on the ground
+        return x, F, AO, alpha
+
+    def _articulated(self, terms, kappa, tau, alpha_driven, forces: bool):
+        """:func:`ctmm.articulated.articulated_sweep` of these terms (see :meth:`sweep`) and its ``x`` stacked
+        ``(sum (3 + n_j), 1)``, checked finite (else :class:`SimulationError` naming the element)."""
         bodies = []                                     # unbatched 2-D matrices: the B = 1 fast path of ops
-        for M, h, ends in terms:
-            if ends:
+        for (M, h, ends), carrying in zip(terms, self.carrying):
+            if carrying:                                # only the ends that carry a child are read
                 Kin, c, RF = {}, {}, {}
-                for e, (K, ce, R) in enumerate(ends):
-                    Kin[e], c[e], RF[e] = K, ce.reshape(3, 1), R
+                for e in carrying:
+                    Kin[e], ce, RF[e] = ends[e]
+                    c[e] = ce.reshape(3, 1)
                 bodies.append(BodyTerms(M, h.reshape(-1, 1), Kin, c, RF))
             else:
                 bodies.append(BodyTerms(M, h.reshape(-1, 1)))
@@ -215,12 +240,12 @@ class FlexibleSystem:
                 kap.append(None)
         with np.errstate(all="ignore"):
             try:
-                out = articulated_sweep(NUMPY, self.tree, bodies, joints, kap)
+                out = articulated_sweep(NUMPY, self.tree, bodies, joints, kap, forces=forces)
             except np.linalg.LinAlgError as exc:
                 raise SimulationError(f"articulated inertia or modal matrix of model {self.model.name!r} is "
                                       f"singular ({exc})", element=self._singular_element(terms)) from exc
-        x = [xj[:, 0] for xj in out.x]
-        if not math.isfinite(np.concatenate(x).sum()) and not np.isfinite(np.concatenate(x)).all():
+        stacked = np.concatenate(out.x)
+        if not math.isfinite(stacked.sum()) and not np.isfinite(stacked).all():
             # a zero or non-finite pivot leaves no finite x
             for j, pivot in enumerate(out.pivot):
                 if pivot is not None and pivot.shape[-1] == 1:
@@ -230,15 +255,7 @@ class FlexibleSystem:
                                               f"singular ({d!r})", element=self.model.joint_names[j])
             raise SimulationError(f"articulated inertia or modal matrix of model {self.model.name!r} is singular "
                                   "(non-finite accelerations)", element=self._singular_element(terms))
-        if not full:
-            return x, None, None, None
-        F = np.concatenate(out.force, axis=1).T
-        alpha = np.array([0.0 if r is None else r[-1, 0] for r in out.relative])
-        AO = np.concatenate([xj[:3] for xj in out.x], axis=1).T   # A_O = A - S a_rel: revolute, driven S = e3
-        AO[:, 2] -= alpha
-        if self.free_base:
-            AO[self.free_base] = 0.0                 # a free base hangs on the ground
-        return x, F, AO, alpha
+        return out, stacked
 
     def _singular_element(self, terms) -> str | None:
         """Name of the body whose own modal matrix is worst conditioned (for error messages)."""
@@ -277,7 +294,7 @@ class FlexibleSystem:
         evaluated once, one sweep per entry (each result the same as with those inputs alone)."""
         q, qdot = self.model.state(q, qdot)
         driven = self.model.driven(t)
-        terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t, driven)
+        terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t, driven, carrying=True)
         torques, alpha_driven = self.hinge_torques(q, qdot, theta, omega, t), self.driven_alpha(t, driven)
         solutions = []
         for inputs in inputs_list:
@@ -295,10 +312,10 @@ class FlexibleSystem:
         if not checked:
             q, qdot = self.model.state(q, qdot)
         driven = self.model.driven(t)
-        terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t, driven)
+        terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t, driven, carrying=True)
         tau = self.apply_inputs(terms, theta, self.hinge_torques(q, qdot, theta, omega, t), inputs)
-        x, _, _, _ = self.sweep(terms, None, tau.tolist(), self.driven_alpha(t, driven), full=False)
-        return self.qddot(x)
+        _, stacked = self._articulated(terms, None, tau.tolist(), self.driven_alpha(t, driven), False)
+        return stacked[self.coordinate_rows, 0]           # qddot of the stacked x
 
 
 def system_of(model: PlanarModel) -> FlexibleSystem:

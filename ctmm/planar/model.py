@@ -543,14 +543,12 @@ class PlanarModel:
                           ) -> tuple[np.ndarray, np.ndarray]:
         """Angle and rate of the parent end each body hangs on (ground angle for roots);
         includes the elastic slope of flexible parents."""
-        p = self.parent
-        has = p >= 0
-        th = np.where(has, theta[np.maximum(p, 0)], self.ground_angle)
-        om = np.where(has, omega[np.maximum(p, 0)], 0.0)
+        index = self._inboard_index                  # the parent's angle and rate, a root's ground angle and 0
+        th = np.concatenate((theta, self.ground_angle))[index]          # gathered: new arrays
+        om = np.concatenate((omega, self._zeros))[index]
         if self.has_flexible:
             q, qdot = np.asarray(q), np.asarray(qdot)
-            th = np.array(th, dtype=np.result_type(th, q))
-            om = np.array(om, dtype=np.result_type(om, qdot))
+            th, om = th.astype(np.result_type(th, q), copy=False), om.astype(np.result_type(om, qdot), copy=False)
             for i, parent in enumerate(self._parent_list):     # Python ints: no numpy scalar per body
                 if parent in self.beams:
                     slope = self.end_slope(i)
