@@ -22,6 +22,7 @@ QUICK_RUN_OWNERS: dict[str, str] = {
     "pendulum_chain": "test_planar_scenarios.py",
     "finite_segments": "test_flexible_scenarios.py",
     "fem_chain": "test_fem_scenario.py",
+    "spatial_fem_chain": "test_spatial_fem_scenario.py",
     "rotary_base_segments": "test_rotary_base_segments.py",
 }
 NAMES = sorted(set(scenario.available()) - set(QUICK_RUN_OWNERS))
