@@ -54,7 +54,10 @@ def is_symbolic(value: Any) -> bool:
 
 
 def _select(condition_real: Any, a: Any, b: Any) -> Any:
-    """``a`` where the (real) condition holds, else ``b``: casadi ``if_else`` for symbols, numpy ``where``."""
+    """``a`` where the (real) condition holds, else ``b``: casadi ``if_else`` for symbols, numpy ``where``
+    (a Python ``bool`` condition -- a float compared -- picks ``a`` or ``b`` itself)."""
+    if type(condition_real) is bool:
+        return a if condition_real else b
     if is_symbolic(condition_real) or is_symbolic(a) or is_symbolic(b):
         import casadi
         return casadi.if_else(condition_real, a, b)
@@ -72,6 +75,8 @@ class Law(ABC):
 
         A complex numpy argument is evaluated to first order in its imaginary part (module docstring).
         """
+        if type(delta) is float and type(rate) is float:     # the time loops' per-hinge call: no symbol, no complex
+            return self._value(delta, rate)
         if is_symbolic(delta) or is_symbolic(rate):
             self._require_expressible()
             return self._value(delta, rate)
@@ -83,6 +88,8 @@ class Law(ABC):
 
     def tangents(self, delta: Any, rate: Any = 0.0) -> tuple[Any, Any]:
         """``(df/ddelta, df/drate)``: tangent stiffness [N/m or N m/rad] and damping [N s/m or N m s/rad]."""
+        if type(delta) is float and type(rate) is float:
+            return self._tangents(delta, rate)
         if is_symbolic(delta) or is_symbolic(rate):
             self._require_expressible()
         elif np.iscomplexobj(delta) or np.iscomplexobj(rate):

@@ -38,8 +38,8 @@ def test_natural_frequencies_equal_eigh_of_the_global_linearisation():
     assert ctmm.natural_frequencies(model, n_modes=6) == pytest.approx(omega, rel=1e-9)
 
 
-def test_particle_chain_scenario_quick(tmp_path):
-    summary = particle_chain.run(tmp_path, quick=True)
+def test_particle_chain_scenario_quick(quick_scenario):
+    summary, tmp_path = quick_scenario("particle_chain")
     json.dumps(summary)
     assert (tmp_path / "particle_chain.png").stat().st_size > 1000
     (figure,) = summary["accuracy"]

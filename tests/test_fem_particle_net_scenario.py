@@ -4,9 +4,8 @@ from __future__ import annotations
 import json
 
 
-def test_particle_net_scenario_quick(tmp_path):
-    from ctmm.scenarios import particle_net
-    summary = particle_net.run(tmp_path, quick=True)
+def test_particle_net_scenario_quick(quick_scenario):
+    summary, tmp_path = quick_scenario("particle_net")
     json.dumps(summary)
     assert (tmp_path / "particle_net.png").stat().st_size > 1000
     (figure,) = summary["accuracy"]

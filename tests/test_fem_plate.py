@@ -37,8 +37,8 @@ def test_natural_frequencies_equal_eigh_of_the_global_linearisation():
     assert ctmm.natural_frequencies(model, n_modes=6) == pytest.approx(expected, rel=1e-9)
 
 
-def test_plate_chain_scenario_quick(tmp_path):
-    summary = plate_chain.run(tmp_path, quick=True)
+def test_plate_chain_scenario_quick(quick_scenario):
+    summary, tmp_path = quick_scenario("plate_chain")
     json.dumps(summary)
     assert (tmp_path / "plate_chain.png").stat().st_size > 1000
     (figure,) = summary["accuracy"]

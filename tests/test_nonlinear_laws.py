@@ -53,6 +53,21 @@ def test_potential_is_the_integral_of_the_static_force(law):
         assert law.potential(d) == pytest.approx(integral, rel=1e-9, abs=1e-12)
 
 
+@pytest.mark.parametrize("law", LAWS, ids=repr)
+def test_a_float_argument_gives_the_numbers_of_the_array_path(law):
+    # the time loops call a law with Python floats (a shortcut past the symbol and complex checks): each value,
+    # tangent and potential equals the element of one array evaluation, the clearance corners included
+    deltas = np.array([-0.61, -0.3, -0.05, -0.0, 0.0, 0.013, 0.05, 0.05 + 1e-12, 0.3, 0.47])
+    rates = np.array([0.4, -1.3, 0.0, 2.0, -0.0, 0.02, -0.7, 1e-3, -2.5, 0.9])
+    values, (stiffness, damping) = law.force(deltas, rates), law.tangents(deltas, rates)
+    for k, (d, v) in enumerate(zip(deltas.tolist(), rates.tolist())):
+        assert type(d) is float and type(v) is float
+        assert float(law.force(d, v)) == values[k]
+        assert [float(x) for x in law.tangents(d, v)] == [stiffness[k], damping[k]]
+        if not isinstance(law, CallableLaw):
+            assert float(law.potential(d)) == law.potential(deltas)[k]
+
+
 def test_law_values_of_the_seed_forms():
     assert CubicSpring(10.0, 50.0).force(0.2) == pytest.approx(10 * 0.2 + 50 * 0.008)
     clearance = ClearanceSpring(20.0, clearance=0.05, stop=0.3, stop_stiffness=200.0)

@@ -22,6 +22,10 @@ QUICK_RUN_OWNERS: dict[str, str] = {
     "pendulum_chain": "test_planar_scenarios.py",
     "finite_segments": "test_flexible_scenarios.py",
     "fem_chain": "test_fem_scenario.py",
+    "spatial_fem_chain": "test_spatial_fem_scenario.py",
+    "particle_chain": "test_fem_particle_chain.py",
+    "particle_net": "test_fem_particle_net_scenario.py",
+    "plate_chain": "test_fem_plate.py",
     "rotary_base_segments": "test_rotary_base_segments.py",
 }
 NAMES = sorted(set(scenario.available()) - set(QUICK_RUN_OWNERS))

@@ -4,9 +4,8 @@ from __future__ import annotations
 import json
 
 
-def test_spatial_fem_chain_scenario_quick(tmp_path):
-    from ctmm.scenarios import spatial_fem_chain
-    summary = spatial_fem_chain.run(tmp_path, quick=True)
+def test_spatial_fem_chain_scenario_quick(quick_scenario):
+    summary, tmp_path = quick_scenario("spatial_fem_chain")
     json.dumps(summary)
     assert (tmp_path / "spatial_fem_chain.png").stat().st_size > 1000
     for figure in summary["accuracy"]:

@@ -33,6 +33,10 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
+_EYE3 = np.eye(3)
+_EYE3.flags.writeable = False
+
+
 # -- rotations (complex-step safe: no abs, no norm) -------------------------------------------
 def skew(x: np.ndarray) -> np.ndarray:
     """``[x]`` with ``[x] y = x cross y``."""
@@ -44,7 +48,7 @@ def quaternion_matrix(quat: np.ndarray) -> np.ndarray:
     vec, w = quat[:3], quat[3]
     s = quat @ quat
     vx = skew(vec)
-    return np.eye(3) + (2.0 / s) * (w * vx + vx @ vx)
+    return _EYE3 + (2.0 / s) * (w * vx + vx @ vx)
 
 
 def quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -80,55 +84,41 @@ def rotation_vector(quat: np.ndarray) -> np.ndarray:
 
 
 # -- joints ------------------------------------------------------------------------------------
-def joint_transform(body, qj: np.ndarray):
-    """Relative rotation ``R`` (joint -> child axes) and child origin ``d`` in joint axes."""
-    kind = body.joint
-    zero = np.zeros(3, dtype=np.result_type(qj, float))
-    if kind == "revolute":
-        return quaternion_matrix(exp_quaternion(body.axes[0] * qj[0])), zero
-    if kind == "prismatic":
-        return np.eye(3), body.axes[0] * qj[0]
-    if kind == "universal":
-        return (quaternion_matrix(exp_quaternion(body.axes[0] * qj[0]))
-                @ quaternion_matrix(exp_quaternion(body.axes[1] * qj[1]))), zero
-    if kind == "spherical":
-        return quaternion_matrix(qj), zero
-    if kind in ("free", "elastic6"):
-        return quaternion_matrix(qj[3:7]), qj[:3]
-    return np.eye(3), zero
-
-
-def motion_columns(body, qj: np.ndarray):
-    """Joint motion axes: angular (child axes) and translational (joint axes), (3, nv) each."""
+def joint_terms(body, qj: np.ndarray, vj: np.ndarray):
+    """One joint's terms, each rotation of its coordinates built once: relative rotation ``R`` (joint -> child
+    axes), child origin ``d`` in joint axes, motion axes ``angular`` (child axes) and ``linear`` (joint axes),
+    (3, nv) each, and the rates of the motion columns times ``vj`` at ``vdot = 0`` (angular child, linear joint)."""
     kind = body.joint
     nv = JOINT_SIZES[kind][1]
     dtype = np.result_type(qj, float)
+    zero = np.zeros(3, dtype=dtype)
     angular, linear = np.zeros((3, nv), dtype), np.zeros((3, nv), dtype)
+    bias_zero = np.zeros(3, dtype=np.result_type(qj, vj, float))
+    bias_w = bias_d = bias_zero
     if kind == "revolute":
+        rel, d = quaternion_matrix(exp_quaternion(body.axes[0] * qj[0])), zero
         angular[:, 0] = body.axes[0]
     elif kind == "prismatic":
+        rel, d = np.eye(3), body.axes[0] * qj[0]
         linear[:, 0] = body.axes[0]
     elif kind == "universal":
         second = quaternion_matrix(exp_quaternion(body.axes[1] * qj[1]))
-        angular[:, 0] = second.T @ body.axes[0]
+        rel, d = quaternion_matrix(exp_quaternion(body.axes[0] * qj[0])) @ second, zero
+        first_axis = second.T @ body.axes[0]
+        angular[:, 0] = first_axis
         angular[:, 1] = body.axes[1]
+        bias_w = -cross(body.axes[1] * vj[1], first_axis * vj[0])
     elif kind == "spherical":
+        rel, d = quaternion_matrix(qj), zero
         angular[:, :] = np.eye(3)
     elif kind in ("free", "elastic6"):
-        linear[:, :3] = quaternion_matrix(qj[3:7])
+        rel, d = quaternion_matrix(qj[3:7]), qj[:3]
+        linear[:, :3] = rel
         angular[:, 3:] = np.eye(3)
-    return angular, linear
-
-
-def joint_motion_bias(body, qj, vj):
-    """Rates of the motion columns times ``v`` at ``vdot = 0``: (angular child, linear joint)."""
-    zero = np.zeros(3, dtype=np.result_type(qj, vj, float))
-    if body.joint == "universal":
-        second = quaternion_matrix(exp_quaternion(body.axes[1] * qj[1]))
-        return -cross(body.axes[1] * vj[1], second.T @ body.axes[0] * vj[0]), zero
-    if body.joint in ("free", "elastic6"):
-        return zero, quaternion_matrix(qj[3:7]) @ cross(vj[3:6], vj[:3])
-    return zero, zero
+        bias_d = rel @ cross(vj[3:6], vj[:3])
+    else:
+        rel, d = np.eye(3), zero
+    return rel, d, angular, linear, bias_w, bias_d
 
 
 # -- kinematics ----------------------------------------------------------------------------------
@@ -167,14 +157,12 @@ def kinematics(tree, q: np.ndarray, v: np.ndarray) -> Kinematics:
             rp, op = np.eye(3), np.zeros(3)
             wp = vp = ap = acp = np.zeros(3)
         r_joint = rp @ body.joint_rotation
-        rel, d = joint_transform(body, qj)
+        rel, d, ang, lin, bias_w, bias_d = joint_terms(body, qj, vj)
         rot[i] = r_joint @ rel
         origin[i] = op + rp @ body.joint_position + r_joint @ d
-        ang, lin = motion_columns(body, qj)
         s_w, s_v = rot[i] @ ang, r_joint @ lin
         axes.append((s_w, s_v))
         w_rel, d_rel = s_w @ vj, s_v @ vj
-        bias_w, bias_d = joint_motion_bias(body, qj, vj)
         lever = origin[i] - op
         omega[i] = wp + w_rel
         velocity[i] = vp + cross(wp, lever) + d_rel
