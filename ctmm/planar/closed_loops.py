@@ -12,7 +12,8 @@ The cut joint's force ``lambda_k`` (global axes [N]; on the child point ``+lambd
 ``-lambda_k``) is the unknown that closes the transfer equations.  At fixed ``(q, qdot, t)`` the tree's
 O(n) articulated sweep (:func:`ctmm.planar.sweep.solve_instant`) is affine in applied forces, so one sweep
 without and ``2 m`` sweeps with unit boundary forces (the tree's terms evaluated once for all of them,
-:func:`ctmm.planar.sweep.solve_instant_inputs`) give the relative acceleration of the cut points as
+:func:`ctmm.planar.sweep.solve_instant_inputs`; on a tree without deformable bodies one batch through one call of
+the mapped sweep, :func:`ctmm.planar.sweep.solve_instant_batch`) give the relative acceleration of the cut points as
 ``a_rel = a_0 + G lambda`` (``G``: the ``2 m x 2 m`` boundary compliance).  The constraint at the
 acceleration level with Baumgarte stabilisation::
 
@@ -52,7 +53,7 @@ from .cut_joints import CutJoint
 from .cut_points import CutPoints
 from .model import PlanarModel
 from .ports import ActuatorInputs
-from .sweep import solve_instant_inputs
+from .sweep import solve_instant_batch, solve_instant_inputs
 
 __all__ = ["CutJoint", "KinematicLoopModel", "KinematicLoopSimulation", "simulate_kinematic_loops"]
 
@@ -135,6 +136,7 @@ class KinematicLoopModel:
         self._points = self.cut_points.sides
         self._rows = np.cumsum([0] + [3 if cut.driven else 2 for cut in cuts])   # first row of each cut, and m
         self._unit_loads = np.vstack([np.zeros(self._rows[-1]), np.eye(self._rows[-1])])   # none, then each unit load
+        self._batched = tree.deformable_family is None     # no deformable side: the unit loads as one batch
         self.name = tree.name
         self._tangents: dict = {}           # (q0, t, baumgarte) -> (A, N, q0, jacobian error): resting_tangent
         self._equilibria: dict = {}         # (guess, t, tolerance, largest step) -> equilibrium (the last 8)
@@ -227,10 +229,12 @@ class KinematicLoopModel:
         added to ``inputs``: on a rigid body a force at the centre of mass with the moment of its lever; at a
         deformable body's end its frame wrench and generalised forces (virtual work;
         :meth:`ctmm.planar.cut_points.CutPoints.add_force`).  ``points``: :meth:`_points_at`; ``sides``: its
-        :meth:`_side_points` and :meth:`_law_moments` when the caller has them (the unit loads of one state)."""
+        :meth:`_side_points` and :meth:`_law_moments` when the caller has them (the unit loads of one state).
+        ``loads`` (rows, n_batch) on a tree without deformable bodies: the inputs of each column at once, every array
+        with a leading batch axis (:func:`ctmm.planar.sweep.solve_instant_batch`)."""
         side_points, moments = (self._side_points(points), self._law_moments(points)) if sides is None else sides
         m, sides = self.tree, self.cut_points
-        body_force = np.zeros((m.n_bodies, 3))
+        body_force = np.zeros((m.n_bodies, 3) + loads.shape[1:])       # a batch along the last axis here
         modal = {j: np.array(v, dtype=float) for j, v in (inputs.modal_force if inputs else {}).items()}
         frame = {j: np.array(v, dtype=float) for j, v in (inputs.frame_wrench if inputs else {}).items()}
         for k, (cut, ((jp, ep), (jc, ec)), ((_, _, lever_p), (_, _, lever_c)), law) in enumerate(
@@ -243,9 +247,17 @@ class KinematicLoopModel:
             tau = loads[self._rows[k] + 2] if cut.driven else law
             sides.add_moment(jc, ec, tau, body_force, modal, frame)
             sides.add_moment(jp, ep, -tau, body_force, modal, frame)
+        if loads.ndim > 1:
+            body_force = np.moveaxis(body_force, -1, 0)
+            batch = (loads.shape[1],)
+            modal = {j: np.broadcast_to(v, batch + v.shape) for j, v in modal.items()}
+            frame = {j: np.broadcast_to(v, batch + v.shape) for j, v in frame.items()}
+        hinge_torque = np.zeros(m.n_bodies) if inputs is None else inputs.hinge_torque
+        if loads.ndim > 1:
+            hinge_torque = np.broadcast_to(hinge_torque, (loads.shape[1], m.n_bodies))
         if inputs is None:
-            return ActuatorInputs(np.zeros(m.n_bodies), body_force, modal, frame)
-        return ActuatorInputs(inputs.hinge_torque, inputs.body_force + body_force, modal, frame)
+            return ActuatorInputs(hinge_torque, body_force, modal, frame)
+        return ActuatorInputs(hinge_torque, inputs.body_force + body_force, modal, frame)
 
     def torque_inputs(self, name: str) -> ActuatorInputs:
         """A unit torque [N m] across cut ``name`` (``+1`` on the child side, ``-1`` on the parent; at a deformable
@@ -271,17 +283,19 @@ class KinematicLoopModel:
     def _relative(self, solution, points: dict, t: float, side_points: list) -> np.ndarray:
         """``Phi''`` of the cuts (relative accelerations of their sides; a driven cut also its angle's, less the
         drive's) in the tree ``solution`` (``points``: :meth:`_points_at` at its state, ``side_points`` their
-        :meth:`_side_points`)."""
+        :meth:`_side_points`); a solution with a leading batch axis on a tree without deformable bodies
+        (:func:`ctmm.planar.sweep.solve_instant_batch`): (n_batch, rows)."""
         sides = self.cut_points
         A, qdd = solution.body_acceleration, solution.qddot
         relative = []
         for cut, ((jp, ep), (jc, ec)), ((_, _, lever_p), (_, _, lever_c)) in zip(self.cuts, self._points, side_points):
-            relative.append(sides.acceleration(points, A, qdd, jc, ec, lever_c)
-                            - sides.acceleration(points, A, qdd, jp, ep, lever_p))
+            relative.append(sides.acceleration(points, A, qdd, jc, ec, lever_c)     # one side at least on a body:
+                            - sides.acceleration(points, A, qdd, jp, ep, lever_p))  # the batch shape
             if cut.driven:      # angular accelerations of the sides (a deformable end: plus its slope's)
-                relative.append([sides.angular_acceleration(A, qdd, jc, ec) - sides.angular_acceleration(A, qdd, jp, ep)
-                                 - float(cut.angle_acceleration(t))])
-        return np.concatenate(relative)
+                relative.append(np.expand_dims(sides.angular_acceleration(A, qdd, jc, ec)
+                                               - sides.angular_acceleration(A, qdd, jp, ep)
+                                               - float(cut.angle_acceleration(t)), -1))
+        return np.concatenate(relative, axis=-1)
 
     def solve(self, q, qdot, t: float = 0.0, inputs: ActuatorInputs | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``(qddot, cut forces (n_cuts, 2))`` at ``(q, qdot, t)`` (module docstring), with the tree's actuator
@@ -307,11 +321,18 @@ class KinematicLoopModel:
         points = self._points_at(q, qdot, t)
         side_points = self._side_points(points)         # the sides' kinematics and laws once for every unit load
         sides = (side_points, self._law_moments(points))
-        solutions = solve_instant_inputs(self.tree, q, qdot, t, [self._cut_loads(points, load, inputs, sides)
-                                                                  for load in self._unit_loads])   # terms once
-        qdd0, a0 = solutions[0].qddot, self._relative(solutions[0], points, t, side_points)
-        G = np.column_stack([self._relative(solution, points, t, side_points) - a0 for solution in solutions[1:]])
-        dqdd = np.column_stack([solution.qddot - qdd0 for solution in solutions[1:]])
+        if self._batched:       # no deformable body: the loads of every column at once, one sweep over them
+            solution = solve_instant_batch(self.tree, q, qdot, t, self._cut_loads(points, self._unit_loads.T, inputs,
+                                                                                   sides))
+            qdd, relative = solution.qddot, self._relative(solution, points, t, side_points)
+        else:
+            solutions = solve_instant_inputs(self.tree, q, qdot, t, [self._cut_loads(points, load, inputs, sides)
+                                                                      for load in self._unit_loads])   # terms once
+            qdd = np.array([solution.qddot for solution in solutions])
+            relative = np.array([self._relative(solution, points, t, side_points) for solution in solutions])
+        qdd0, a0 = qdd[0], relative[0]
+        G = np.ascontiguousarray((relative[1:] - a0).T)     # column k: the response to unit load k
+        dqdd = np.ascontiguousarray((qdd[1:] - qdd0).T)
         phi, phi_dot = self._constraints_at(points, t, side_points)
         alpha = self.baumgarte
         target = -a0 - 2.0 * alpha * phi_dot - alpha * alpha * phi

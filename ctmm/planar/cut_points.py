@@ -230,12 +230,13 @@ class CutPoints:
         """Acceleration [m/s^2] of a side from the sweep's body accelerations ``A`` (inboard ends, ``(a_x, a_y,
         alpha)``) and ``qddot``: ``a_in + alpha k x r - omega^2 r`` and, at a deformable end,
         ``2 omega k x (R v_loc) + R a_loc``; ``lever``: its ``r`` from :meth:`point` at ``points`` when the caller
-        has it."""
+        has it.  At a rigid-body point or the ground ``A`` may have a leading batch axis (several solutions at the
+        state of ``points``): the accelerations (n_batch, 2)."""
         if j < 0:
             return np.zeros(2)
         r = self.point(points, j, e)[2] if lever is None else lever
-        om, al = points["omega"][j], A[j, 2]
-        acc = A[j, :2] + al * np.array([-r[1], r[0]]) - om * om * r
+        om, al = points["omega"][j], A[..., j, 2:]
+        acc = A[..., j, :2] + al * np.array([-r[1], r[0]]) - om * om * r
         if not isinstance(e, np.ndarray):
             th = points["theta"][j]
             _, local_v, local_a = self.end_local(j, e, points["q"], points["qdot"], qddot)
@@ -256,11 +257,12 @@ class CutPoints:
         return angle, rate
 
     def angular_acceleration(self, A: np.ndarray, qddot: np.ndarray, j: int, e: np.ndarray | int) -> float:
-        """Angular acceleration [rad/s^2] of a side (a deformable end: plus ``d_e . eta''``)."""
+        """Angular acceleration [rad/s^2] of a side (a deformable end: plus ``d_e . eta''``); at a rigid-body point
+        ``A`` may have a leading batch axis (:meth:`acceleration`): (n_batch,)."""
         if j < 0:
             return 0.0
         if isinstance(e, np.ndarray):
-            return float(A[j, 2])
+            return A[..., j, 2] if A.ndim > 2 else float(A[j, 2])
         return float(A[j, 2] + self.end_slope(j, e) @ qddot[self.tree.modal_index[j]])
 
     # -- loads -------------------------------------------------------------------------------------

@@ -542,18 +542,20 @@ class ActuatorInputs:
 
     def inboard_wrench(self, model: PlanarModel, theta: np.ndarray) -> np.ndarray:
         """``(fx, fy, moment about the inboard point)`` of the body forces, shape (n_bodies, 3),
-        with the bodies at absolute angles ``theta`` [rad]."""
+        with the bodies at absolute angles ``theta`` [rad]; inputs with a leading batch axis on every array (a
+        batch of inputs at one state, :func:`ctmm.planar.sweep.solve_instant_batch`): (n_batch, n_bodies, 3)."""
         c, s = np.cos(theta), np.sin(theta)
         rcx = c * model.com[:, 0] - s * model.com[:, 1]
         rcy = s * model.com[:, 0] + c * model.com[:, 1]
         f = self.body_force
         wrench = np.array(f, dtype=np.result_type(f, theta))
-        wrench[:, 2] = rcx * f[:, 1] - rcy * f[:, 0] + f[:, 2]
+        wrench[..., 2] = rcx * f[..., 1] - rcy * f[..., 0] + f[..., 2]
         if self.frame_wrench:
-            for j, (f1, f2, moment) in self.frame_wrench.items():
-                wrench[j, 0] += c[j] * f1 - s[j] * f2
-                wrench[j, 1] += s[j] * f1 + c[j] * f2
-                wrench[j, 2] += moment
+            for j, frame in self.frame_wrench.items():
+                f1, f2, moment = np.moveaxis(np.asarray(frame), -1, 0)
+                wrench[..., j, 0] += c[j] * f1 - s[j] * f2
+                wrench[..., j, 1] += s[j] * f1 + c[j] * f2
+                wrench[..., j, 2] += moment
         return wrench
 
 

@@ -25,6 +25,10 @@ Two evaluations of that one sweep (the numbers agree to round-off, ``tests/test_
   sweeps of the last 64 structures (a memo of a function of the structure only; the numbers do not
   depend on what ran before);
 * complex terms (and :meth:`RigidTreeSweep.numpy_sweep`): numpy on unbatched 2-D terms.
+
+:meth:`RigidTreeSweep.batch` runs the sweep at one state for a batch of applied terms ``b``, ``tau`` (a kinematic
+loop's cut loads and unit loads): the traced function mapped over the batch (casadi's serial map, each row the
+numbers of one call), one evaluation for the whole batch.
 """
 from __future__ import annotations
 
@@ -144,6 +148,36 @@ class RigidTreeSweep:
                 A, F, alpha, pivots = self._numpy(*arrays)
         else:
             A, F, alpha, pivots = self._run_traced(arrays)
+        self._check_finite(A, pivots)
+        return A, F, alpha
+
+    def batch(self, K: Any, b: Any, E: Any, kappa: Any, tau: Any, alpha_driven: Any
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`__call__` at one state for a batch of applied terms: ``b`` (n_batch, n_bodies, 3) and ``tau``
+        (n_batch, n_bodies) (e.g. a kinematic loop's loads and its unit loads), the other arguments as
+        :meth:`__call__`; returns ``A``, ``F`` (n_batch, n_bodies, 3) and ``alpha`` (n_batch, n_bodies), each row the
+        numbers of :meth:`__call__` with that row's ``b`` and ``tau`` (float terms: the traced sweep mapped over the
+        rows in one call; complex terms: one numpy sweep per row).
+
+        Raises
+        ------
+        SimulationError
+            As :meth:`__call__`, at the first row with non-finite accelerations.
+        """
+        b, tau = np.asarray(b), np.asarray(tau)
+        arrays = [np.asarray(x) for x in (K, E, kappa, alpha_driven)]
+        if "c" in [x.dtype.kind for x in arrays + [b, tau]]:
+            with np.errstate(all="ignore"):
+                rows = [self._numpy(arrays[0], b_k, arrays[1], arrays[2], tau_k, arrays[3]) for b_k, tau_k in zip(b, tau)]
+            A, F, alpha, pivots = (np.array([row[k] for row in rows]) for k in range(4))
+        else:
+            A, F, alpha, pivots = self._run_traced_batch(arrays, b, tau)
+        for A_k, pivots_k in zip(A, pivots):
+            self._check_finite(A_k, pivots_k)
+        return A, F, alpha
+
+    def _check_finite(self, A: np.ndarray, pivots: np.ndarray) -> None:
+        """:class:`SimulationError` naming the singular joint unless the accelerations ``A`` are finite."""
         if not np.isfinite(A).all():
             # the first singular pivot of the tip-to-base pass (the bodies below it inherit non-finite terms)
             singular = [j for j in range(len(self.parent)) if not (np.isfinite(pivots[j]) and pivots[j] != 0)]
@@ -151,7 +185,6 @@ class RigidTreeSweep:
             raise SimulationError(f"articulated inertia of joint {self.names[bad]!r} is singular (pivot "
                                   f"{pivots[bad]!r}, non-finite accelerations in the articulated sweep)",
                                   element=self.names[bad])
-        return A, F, alpha
 
     def numpy_sweep(self, K: np.ndarray, b: np.ndarray, E: np.ndarray, kappa: np.ndarray, tau: np.ndarray,
                     alpha_driven: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -216,24 +249,57 @@ class RigidTreeSweep:
     def _run_traced(self, arrays: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Evaluate :meth:`traced` through this thread's buffer (float arguments as :meth:`__call__`; results as
         :meth:`_numpy`)."""
-        if self._function is None:
-            self._function = self.traced()
-        local = self._local
-        buffer = getattr(local, "buffer", None)
-        if buffer is None:
-            buffer = local.buffer = self._function.buffer()
-        memory, run = buffer
         nb = len(self.parent)
-        sizes = [x.size for x in arrays]
+        self._check_sizes([x.size for x in arrays])
+        z = np.concatenate(arrays, axis=None, dtype=float)      # each flattened in row-major order
+        w = self._evaluate(z, 1)
+        return w[:3 * nb].reshape(nb, 3), w[3 * nb:6 * nb].reshape(nb, 3), w[6 * nb:7 * nb], w[7 * nb:]
+
+    def _run_traced_batch(self, arrays: list, b: np.ndarray, tau: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`_run_traced` for each row of ``b`` and ``tau`` (``arrays``: ``K``, ``E``, ``kappa``,
+        ``alpha_driven``), one evaluation of the traced sweep mapped over the rows; results with a leading batch
+        axis."""
+        nb, count = len(self.parent), len(b)
+        K, E, kappa, driven = arrays
+        self._check_sizes([K.size, b[0].size if count else 3 * nb, E.size, kappa.size,
+                           tau[0].size if count else nb, driven.size])
+        z = np.empty((count, 21 * nb))                          # row k: the z of row k (its b and tau)
+        z[:, :9 * nb] = K.reshape(-1)
+        z[:, 9 * nb:12 * nb] = b.reshape(count, 3 * nb)
+        z[:, 12 * nb:18 * nb] = E.reshape(-1)
+        z[:, 18 * nb:19 * nb] = kappa.reshape(-1)
+        z[:, 19 * nb:20 * nb] = tau.reshape(count, nb)
+        z[:, 20 * nb:] = driven.reshape(-1)
+        w = self._evaluate(z.reshape(-1), count).reshape(count, 8 * nb)
+        return (w[:, :3 * nb].reshape(count, nb, 3), w[:, 3 * nb:6 * nb].reshape(count, nb, 3), w[:, 6 * nb:7 * nb],
+                w[:, 7 * nb:])
+
+    def _check_sizes(self, sizes: list) -> None:
+        """:class:`ModelError` unless the arguments of one sweep have 9, 3, 6, 1, 1 and 1 values per body."""
+        nb = len(self.parent)
         if sizes != [9 * nb, 3 * nb, 6 * nb, nb, nb, nb]:
             raise ModelError(f"RigidTreeSweep: the arguments K, b, E, kappa, tau, alpha_driven have {sizes} values; "
                              f"{nb} bodies need 9, 3, 6, 1, 1 and 1 per body")
-        z = np.concatenate(arrays, axis=None, dtype=float)      # each flattened in row-major order
-        w = np.empty(8 * nb)
+
+    def _evaluate(self, z: np.ndarray, count: int) -> np.ndarray:
+        """The traced sweep on ``count`` stacked inputs ``z`` (``count`` blocks of 21 values per body): the
+        stacked outputs (8 per body each), through this thread's buffer of the sweep mapped over ``count``
+        columns (casadi's serial map: the one traced function on each column, column-major = the blocks)."""
+        if self._function is None:
+            self._function = self.traced()
+        buffers = getattr(self._local, "buffers", None)
+        if buffers is None:
+            buffers = self._local.buffers = {}
+        buffer = buffers.get(count)
+        if buffer is None:
+            buffer = buffers[count] = (self._function if count == 1 else self._function.map(count)).buffer()
+        memory, run = buffer
+        w = np.empty(8 * len(self.parent) * count)
         memory.set_arg(0, memoryview(z))
         memory.set_res(0, memoryview(w))
         run()                                   # z and w are alive: the buffer holds their addresses only
-        return w[:3 * nb].reshape(nb, 3), w[3 * nb:6 * nb].reshape(nb, 3), w[6 * nb:7 * nb], w[7 * nb:]
+        return w
 
 
 @functools.lru_cache(maxsize=64)

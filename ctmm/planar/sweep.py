@@ -124,14 +124,15 @@ def _driven_alpha(model: PlanarModel, t: float) -> list:
 
 def coordinate_accelerations(model: PlanarModel, A: np.ndarray, translation: dict | None = None
                              ) -> np.ndarray:
-    """Map body accelerations ``(nb, 3)`` (and hinge translations) to ``qddot``."""
-    qddot = np.empty(model.n_coordinates)
+    """Map body accelerations ``(nb, 3)`` (and hinge translations) to ``qddot``; ``A`` with a leading batch axis
+    (without ``translation``): ``qddot`` of each row."""
+    qddot = np.empty(A.shape[:-2] + (model.n_coordinates,))
     cb = model.coordinate_bodies
-    qddot[model.theta_index[cb]] = A[cb, 2]
+    qddot[..., model.theta_index[cb]] = A[..., cb, 2]
     fb = model.free_bodies
     if len(fb):
-        qddot[model.xy_index[fb, 0]] = A[fb, 0]
-        qddot[model.xy_index[fb, 1]] = A[fb, 1]
+        qddot[..., model.xy_index[fb, 0]] = A[..., fb, 0]
+        qddot[..., model.xy_index[fb, 1]] = A[..., fb, 1]
     for j, (ddx, ddy) in (translation or {}).items():
         qddot[model.xy_index[j, 0]] = ddx
         qddot[model.xy_index[j, 1]] = ddy
@@ -208,16 +209,43 @@ def solve_instant_inputs(model: PlanarModel, q, qdot, t: float, inputs_list: Seq
                 for sol in model.flexible_system.solve_inputs(q, qdot, t, inputs_list)]
     if len(model.bushing_bodies):
         return [_scene_solution(model, q, qdot, t, inputs) for inputs in inputs_list]
+    batch = _rigid_batch(model, q, qdot, t, lambda theta, b0, tau0: [
+        _with_inputs(model, theta, b0, tau0, inputs) for inputs in inputs_list])
+    return [InstantaneousSolution(*row) for row in zip(batch.qddot, batch.body_acceleration, batch.joint_force,
+                                                       batch.hinge_acceleration)]
+
+
+def solve_instant_batch(model: PlanarModel, q, qdot, t: float, inputs: ActuatorInputs) -> InstantaneousSolution:
+    """:func:`solve_instant_inputs` for a batch of actuator inputs given as one :class:`ActuatorInputs` whose arrays
+    all have a leading batch axis (``hinge_torque`` (n_batch, n_bodies), ``body_force`` (n_batch, n_bodies, 3), each
+    ``modal_force`` / ``frame_wrench`` entry (n_batch, ...)): the solution's arrays with that leading axis (no
+    ``modal_acceleration``), each row the numbers of :func:`solve_instant` with that row's inputs.  A rigid tree on
+    the fast path applies the batch at once and runs one sweep over it; other trees one sweep per row."""
+    q, qdot, t = _checked_state(model, q, qdot, t, inputs)
+    if model.flexible_system is not None or len(model.bushing_bodies):
+        rows = solve_instant_inputs(model, q, qdot, t, [ActuatorInputs(
+            inputs.hinge_torque[k], inputs.body_force[k], {j: v[k] for j, v in inputs.modal_force.items()},
+            {j: v[k] for j, v in inputs.frame_wrench.items()}) for k in range(len(inputs.body_force))])
+        return InstantaneousSolution(*(np.array([getattr(row, name) for row in rows]) for name in (
+            "qddot", "body_acceleration", "joint_force", "hinge_acceleration")))
+    return _rigid_batch(model, q, qdot, t, lambda theta, b0, tau0: _with_inputs(model, theta, b0, tau0, inputs))
+
+
+def _rigid_batch(model: PlanarModel, q: np.ndarray, qdot: np.ndarray, t: float, applied: Callable
+                 ) -> InstantaneousSolution:
+    """The solution of a rigid tree on the fast path for a batch of applied terms: the state's body terms and hinge
+    laws once, ``applied(theta, b, tau)`` the ``(b, tau)`` of each row (a list of pairs, or one pair with a leading
+    batch axis), then the one sweep over the batch; arrays with a leading batch axis."""
     theta, omega = model.body_angles(q, qdot, t)
     K, b0, E, _ = body_terms(model, theta, omega, t)
     tau0, driven, kappa, sweep = hinge_torques(model, theta, omega, t), _driven_alpha(model, t), \
         np.zeros(model.n_bodies), model_sweep(model)
-    solutions = []
-    for inputs in inputs_list:
-        b, tau = _with_inputs(model, theta, b0, tau0, inputs)
-        A, F, alpha = sweep(K, b, E, kappa, tau, driven)
-        solutions.append(InstantaneousSolution(coordinate_accelerations(model, A), A, F, alpha))
-    return solutions
+    rows = applied(theta, b0, tau0)
+    b, tau = (np.array([b for b, _ in rows]), np.array([tau for _, tau in rows])) if isinstance(rows, list) else rows
+    count = len(b) if np.ndim(b) == 3 else len(tau)
+    b = b if np.ndim(b) == 3 else np.broadcast_to(b, (count,) + np.shape(b0))      # inputs without body loads
+    A, F, alpha = sweep.batch(K, b, E, kappa, tau, driven)
+    return InstantaneousSolution(coordinate_accelerations(model, A), A, F, alpha)
 
 
 def _scene_solution(model: PlanarModel, q: np.ndarray, qdot: np.ndarray, t: float, inputs
