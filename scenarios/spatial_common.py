@@ -10,7 +10,7 @@ import numpy as np
 import ctmm
 import ctmm.spatial as sp
 from ctmm.reference import spatial_tree as ref
-from ctmm.reference.spatial_kinematics import kinematics
+from ctmm.reference.spatial_kinematics import orientations
 from ctmm.scenario import accuracy
 
 STATE_BOUND = 1e-6   # [rad/s]: RK4 at the scenario step against the reference at a finer step
@@ -54,8 +54,9 @@ def states(model: sp.SpatialModel, result: Any) -> tuple[np.ndarray, np.ndarray]
 
 
 def world_angular_velocity(tree: ref.SpatialTree, q_reference: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Angular velocities of every body in world axes [rad/s], (samples, bodies, 3)."""
-    return np.array([kinematics(tree, qk, vk).omega for qk, vk in zip(q_reference, v)])
+    """Angular velocities of every body in world axes [rad/s], (samples, bodies, 3) (the reference's
+    rotations and angular velocities only, without positions, accelerations or Jacobians)."""
+    return np.array([orientations(tree, qk, vk).omega for qk, vk in zip(q_reference, v)])
 
 
 def run_against_reference(model: sp.SpatialModel, q0: np.ndarray, v0: np.ndarray, t_final: float,

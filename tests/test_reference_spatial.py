@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from ctmm.errors import ModelError
+from ctmm.reference.spatial_kinematics import kinematics, orientations
 from ctmm.reference.spatial_tree import (
     PointLoad, SpatialBody, SpatialTree, bias_forces, configuration_rate, energy,
     forward_dynamics, inverse_dynamics, joint_law_forces, joint_reactions, linearize,
@@ -114,6 +115,28 @@ def test_every_joint_kind_matches_pinocchio(seed):
     _close(bias_forces(tree, q, v), pin.rnea(model, data, q, v, np.zeros(tree.nv)))
     _close(forward_dynamics(tree, q, v, tau), pin.aba(model, data, q, v, tau))
     _close(inverse_dynamics(tree, q, v, tau), pin.rnea(model, data, q, v, tau))
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_orientations_match_pinocchio_and_are_the_kinematics_values_to_the_bit(seed):
+    """The cheap route (rotations and angular velocities only) against Pinocchio's forward kinematics, and
+    bitwise the values of the full kinematics (real and complex-step inputs) on every joint kind."""
+    rng = np.random.default_rng(10 + seed)
+    kinds = ["free"] + list(rng.permutation([k for k in KINDS if k != "free"])) + ["universal", "revolute"]
+    tree = random_tree(rng, [k if k != "free" or i == 0 else "elastic6" for i, k in enumerate(kinds)])
+    pin, model, data, frame_of = pinocchio_model(tree)
+    q, v, _ = random_state(rng, tree)
+    pin.forwardKinematics(model, data, q, v)
+    fast = orientations(tree, q, v)
+    for i, (joint_id, placement) in enumerate(frame_of):
+        world = data.oMi[joint_id].rotation
+        _close(fast.rotation[i], world @ placement.rotation)
+        _close(fast.omega[i], world @ data.v[joint_id].angular)
+    for q_case, v_case in ((q, v), (q + 1e-20j * rng.normal(size=q.shape), v),
+                           (q, v + 1e-20j * rng.normal(size=v.shape))):
+        full, fast = kinematics(tree, q_case, v_case), orientations(tree, q_case, v_case)
+        assert fast.rotation.dtype == full.rotation.dtype
+        assert fast.rotation.tobytes() == full.rotation.tobytes() and fast.omega.tobytes() == full.omega.tobytes()
 
 
 @pytest.mark.parametrize("seed", range(3))

@@ -84,40 +84,50 @@ def rotation_vector(quat: np.ndarray) -> np.ndarray:
 
 
 # -- joints ------------------------------------------------------------------------------------
+def joint_rotation(body, qj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One joint's relative rotation ``R`` (joint -> child axes) and angular motion axes ``angular`` (child
+    axes, (3, nv)), each rotation of its coordinates built once; :func:`joint_terms` adds the linear terms."""
+    kind = body.joint
+    dtype = np.result_type(qj, float)
+    angular = np.zeros((3, JOINT_SIZES[kind][1]), dtype)
+    if kind == "revolute":
+        rel = quaternion_matrix(exp_quaternion(body.axes[0] * qj[0]))
+        angular[:, 0] = body.axes[0]
+    elif kind == "universal":
+        second = quaternion_matrix(exp_quaternion(body.axes[1] * qj[1]))
+        rel = quaternion_matrix(exp_quaternion(body.axes[0] * qj[0])) @ second
+        angular[:, 0] = second.T @ body.axes[0]
+        angular[:, 1] = body.axes[1]
+    elif kind == "spherical":
+        rel = quaternion_matrix(qj)
+        angular[:, :] = np.eye(3)
+    elif kind in ("free", "elastic6"):
+        rel = quaternion_matrix(qj[3:7])
+        angular[:, 3:] = np.eye(3)
+    else:                                       # prismatic, weld
+        rel = np.eye(3)
+    return rel, angular
+
+
 def joint_terms(body, qj: np.ndarray, vj: np.ndarray):
     """One joint's terms, each rotation of its coordinates built once: relative rotation ``R`` (joint -> child
     axes), child origin ``d`` in joint axes, motion axes ``angular`` (child axes) and ``linear`` (joint axes),
     (3, nv) each, and the rates of the motion columns times ``vj`` at ``vdot = 0`` (angular child, linear joint)."""
     kind = body.joint
-    nv = JOINT_SIZES[kind][1]
     dtype = np.result_type(qj, float)
-    zero = np.zeros(3, dtype=dtype)
-    angular, linear = np.zeros((3, nv), dtype), np.zeros((3, nv), dtype)
-    bias_zero = np.zeros(3, dtype=np.result_type(qj, vj, float))
-    bias_w = bias_d = bias_zero
-    if kind == "revolute":
-        rel, d = quaternion_matrix(exp_quaternion(body.axes[0] * qj[0])), zero
-        angular[:, 0] = body.axes[0]
-    elif kind == "prismatic":
-        rel, d = np.eye(3), body.axes[0] * qj[0]
+    rel, angular = joint_rotation(body, qj)
+    d = np.zeros(3, dtype=dtype)
+    linear = np.zeros(angular.shape, dtype)
+    bias_w = bias_d = np.zeros(3, dtype=np.result_type(qj, vj, float))
+    if kind == "prismatic":
+        d = body.axes[0] * qj[0]
         linear[:, 0] = body.axes[0]
     elif kind == "universal":
-        second = quaternion_matrix(exp_quaternion(body.axes[1] * qj[1]))
-        rel, d = quaternion_matrix(exp_quaternion(body.axes[0] * qj[0])) @ second, zero
-        first_axis = second.T @ body.axes[0]
-        angular[:, 0] = first_axis
-        angular[:, 1] = body.axes[1]
-        bias_w = -cross(body.axes[1] * vj[1], first_axis * vj[0])
-    elif kind == "spherical":
-        rel, d = quaternion_matrix(qj), zero
-        angular[:, :] = np.eye(3)
+        bias_w = -cross(body.axes[1] * vj[1], angular[:, 0] * vj[0])
     elif kind in ("free", "elastic6"):
-        rel, d = quaternion_matrix(qj[3:7]), qj[:3]
+        d = qj[:3]
         linear[:, :3] = rel
-        angular[:, 3:] = np.eye(3)
         bias_d = rel @ cross(vj[3:6], vj[:3])
-    else:
-        rel, d = np.eye(3), zero
     return rel, d, angular, linear, bias_w, bias_d
 
 
@@ -137,6 +147,36 @@ class Kinematics(NamedTuple):
     joint_axes: list            # per body: (world angular, world linear of child origin) (3, nv_j)
 
 
+class Orientations(NamedTuple):
+    """World rotations and angular velocities of all bodies (the part of :class:`Kinematics` they need)."""
+
+    rotation: np.ndarray        # (nb, 3, 3) body -> world
+    omega: np.ndarray           # (nb, 3) [rad/s]
+
+
+def joint_coordinates(tree, i: int, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Body ``i``'s joint coordinates ``qj`` and velocities ``vj`` (views of ``q`` and ``v``)."""
+    nq, nv = JOINT_SIZES[tree.bodies[i].joint]
+    qs, vs = tree.q_start[i], tree.v_start[i]
+    return q[qs: qs + nq], v[vs: vs + nv]
+
+
+def orientations(tree, q: np.ndarray, v: np.ndarray) -> Orientations:
+    """World rotations and angular velocities [rad/s] of all bodies by the same operations as
+    :func:`kinematics` (the same values to the bit), without positions, accelerations or Jacobians."""
+    nb = len(tree.bodies)
+    dtype = np.result_type(q, v, float)
+    rot, omega = np.zeros((nb, 3, 3), dtype), np.zeros((nb, 3), dtype)
+    for i, body in enumerate(tree.bodies):
+        qj, vj = joint_coordinates(tree, i, q, v)
+        p = body.parent
+        rp, wp = (rot[p], omega[p]) if p >= 0 else (np.eye(3), np.zeros(3))
+        rel, ang = joint_rotation(body, qj)
+        rot[i] = (rp @ body.joint_rotation) @ rel
+        omega[i] = wp + (rot[i] @ ang) @ vj
+    return Orientations(rot, omega)
+
+
 def kinematics(tree, q: np.ndarray, v: np.ndarray) -> Kinematics:
     """Forward kinematics of positions, velocities and accelerations at ``vdot = 0``."""
     nb, nv = len(tree.bodies), tree.nv
@@ -147,9 +187,8 @@ def kinematics(tree, q: np.ndarray, v: np.ndarray) -> Kinematics:
     jw, jo = np.zeros((nb, 3, nv), dtype), np.zeros((nb, 3, nv), dtype)
     axes = []
     for i, body in enumerate(tree.bodies):
-        qj = q[tree.q_start[i]: tree.q_start[i] + JOINT_SIZES[body.joint][0]]
+        qj, vj = joint_coordinates(tree, i, q, v)
         vs = tree.v_start[i]
-        vj = v[vs: vs + JOINT_SIZES[body.joint][1]]
         p = body.parent
         if p >= 0:
             rp, op, wp, vp, ap, acp = rot[p], origin[p], omega[p], velocity[p], alpha[p], accel[p]

@@ -59,8 +59,8 @@ import scipy.linalg
 
 from ..errors import ModelError, SimulationError
 from .cholesky import cholesky_solve
-from .spatial_kinematics import (JOINT_SIZES, Kinematics, cross, exp_quaternion, kinematics,
-                                 point_jacobian, quaternion_matrix, quaternion_product,
+from .spatial_kinematics import (JOINT_SIZES, Kinematics, cross, exp_quaternion, joint_coordinates,
+                                 kinematics, point_jacobian, quaternion_matrix, quaternion_product,
                                  rotation_vector)
 
 _AXES_NEEDED = {"revolute": 1, "prismatic": 1, "universal": 2}
@@ -231,17 +231,10 @@ class SpatialTree:
 
 
 # -- generalised forces --------------------------------------------------------------------------
-def _joint_slices(tree: SpatialTree, index: int, q: np.ndarray, v: np.ndarray):
-    body = tree.bodies[index]
-    nq, nv = JOINT_SIZES[body.joint]
-    return q[tree.q_start[index]: tree.q_start[index] + nq], \
-        v[tree.v_start[index]: tree.v_start[index] + nv]
-
-
 def joint_deflection(tree: SpatialTree, index: int, q: np.ndarray, v: np.ndarray):
     """Deflection ``e`` and its rate of joint ``index`` as used by its law (module docstring)."""
     body = tree.bodies[index]
-    qj, vj = _joint_slices(tree, index, q, v)
+    qj, vj = joint_coordinates(tree, index, q, v)
     if body.joint == "spherical":
         return rotation_vector(qj), vj
     if body.joint == "elastic6":
@@ -260,7 +253,7 @@ def joint_law_forces(tree: SpatialTree, q: np.ndarray, v: np.ndarray) -> np.ndar
         e, rate = joint_deflection(tree, i, q, v)
         law = -body.stiffness @ e - body.damping @ rate
         if body.joint == "elastic6":
-            rel = quaternion_matrix(_joint_slices(tree, i, q, v)[0][3:7])
+            rel = quaternion_matrix(joint_coordinates(tree, i, q, v)[0][3:7])
             law = np.concatenate([rel.T @ law[:3], law[3:]])
         out[tree.v_start[i]: tree.v_start[i] + len(law)] = law
     return out
@@ -376,7 +369,7 @@ def configuration_rate(tree: SpatialTree, q: np.ndarray, v: np.ndarray) -> np.nd
     """``q_dot = G(q) v``: quaternion rate ``1/2 quat (x) (omega, 0)``, ``d_dot = R v_lin``."""
     out = np.zeros(tree.nq, dtype=np.result_type(q, v, float))
     for i, body in enumerate(tree.bodies):
-        qj, vj = _joint_slices(tree, i, q, v)
+        qj, vj = joint_coordinates(tree, i, q, v)
         s = tree.q_start[i]
         if body.joint == "spherical":
             out[s: s + 4] = 0.5 * quaternion_product(qj, np.concatenate([vj, [0.0]]))
@@ -394,7 +387,7 @@ def retract(tree: SpatialTree, q: np.ndarray, delta: np.ndarray) -> np.ndarray:
     ``d + R delta_lin`` for quaternion joints (``delta`` in velocity coordinates, (nv,))."""
     out = np.array(q, dtype=np.result_type(q, delta, float))
     for i, body in enumerate(tree.bodies):
-        qj, dj = _joint_slices(tree, i, q, delta)
+        qj, dj = joint_coordinates(tree, i, q, delta)
         s = tree.q_start[i]
         if body.joint == "spherical":
             out[s: s + 4] = quaternion_product(qj, exp_quaternion(dj))
