@@ -37,7 +37,7 @@ import ctmm.spatial as sp
 from ctmm.control import Feedback, with_feedback
 from ctmm.linearize import DelayedLoop, LinearizedSystem
 from ctmm.reference import spatial_tree as ref
-from ctmm.reference.spatial_kinematics import kinematics, quaternion_matrix
+from ctmm.reference.spatial_kinematics import orientations, quaternion_matrix
 from ctmm.scenario import accuracy
 from ctmm.scene_files import load_scene
 from ctmm.stability import delay_margin
@@ -98,7 +98,7 @@ def to_reference(q: np.ndarray) -> np.ndarray:
 
 def reference_theta_z(tree: ref.SpatialTree, q: np.ndarray) -> float:
     """x-y-z angle ``a_z`` of ``R = Rx Ry Rz``: ``R[0,1] = -cos a_y sin a_z``, ``R[0,0] = cos a_y cos a_z``."""
-    return theta_z(kinematics(tree, q, np.zeros(tree.nv)).rotation[0])
+    return theta_z(orientations(tree, q, np.zeros(tree.nv)).rotation[0])
 
 
 def theta_z(rotation: np.ndarray) -> float:
@@ -115,7 +115,7 @@ def reference_law(tree: ref.SpatialTree, controlled: bool):
         rotation = quaternion_matrix(quat)
         tau = -k @ np.r_[rotation.T @ q[:3], 2.0 * quat[3] * quat[:3]] - c @ v
         if controlled:
-            kin = kinematics(tree, q, v)
+            kin = orientations(tree, q, v)                    # rotations and angular velocities only
             moment = np.array([0.0, 0.0, -(KP * theta_z(kin.rotation[0]) + KD * kin.omega[0][2])])
             tau[3:] += kin.rotation[0].T @ moment
         return tau
