@@ -219,3 +219,18 @@ def test_modal_velocity_feedback_hook_damps_and_is_exact_in_the_implicit_scheme(
     undamped = simulate_rk4(free, q0, np.zeros(3), t_final=0.2, dt=1e-3)
     assert model.energy(rk4.q[-1], rk4.qdot[-1]) < 0.8 * free.energy(undamped.q[-1],
                                                                        undamped.qdot[-1])
+
+
+def test_gauss_points_are_numpys_rule_on_the_interval_and_fresh_arrays():
+    """The quadrature of the beams' modal integrals is numpy's Gauss-Legendre rule mapped to [0, L] (bit for bit, the
+    rule computed once per point count), in new arrays a caller may change without changing the next call's."""
+    from ctmm.flexible.modes import gauss_points
+
+    for count, length in ((5, 1.0), (160, 2.5), (160, 0.3)):
+        x_ref, w_ref = np.polynomial.legendre.leggauss(count)
+        x, w = gauss_points(count, length)
+        assert np.array_equal(x, (x_ref + 1.0) * 0.5 * length) and np.array_equal(w, w_ref * 0.5 * length)
+        assert x.flags.writeable and w.flags.writeable
+        x[:], w[:] = 0.0, 0.0
+        again = gauss_points(count, length)
+        assert np.array_equal(again[0], (x_ref + 1.0) * 0.5 * length) and np.array_equal(again[1], w_ref * 0.5 * length)

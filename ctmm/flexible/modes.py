@@ -25,6 +25,7 @@ independent references (:mod:`ctmm.reference.beams`).
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
@@ -189,9 +190,19 @@ def check_root_clamped(mode_set: ModeSet, owner: str) -> None:
             f"(must be 0); use ModeSet.clamped_free(n)")
 
 
-def gauss_points(count: int, length: float) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Legendre abscissae on ``[0, length]`` and weights."""
+@functools.lru_cache(maxsize=16)
+def _legendre_rule(count: int) -> tuple[np.ndarray, np.ndarray]:
+    """numpy's ``leggauss(count)`` on [-1, 1], read-only: a table of constants computed once per count (an
+    eigenproblem of size ``count``: ~20 ms at the beams' default 160 points, paid by every beam and every station
+    before); never returned to a caller, so nothing outside can change it."""
     x, w = np.polynomial.legendre.leggauss(count)
+    x.flags.writeable = w.flags.writeable = False
+    return x, w
+
+
+def gauss_points(count: int, length: float) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre abscissae on ``[0, length]`` [m] and weights [m] (new arrays, numpy's ``leggauss`` rule)."""
+    x, w = _legendre_rule(count)
     return (x + 1.0) * 0.5 * length, w * 0.5 * length
 
 
