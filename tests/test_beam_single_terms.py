@@ -113,3 +113,33 @@ def test_the_sweep_reads_the_ends_that_carry_a_child_and_they_are_the_full_terms
         for end, end_c in zip(ends, ends_c):
             for got, expected in zip(end_c or (), end):
                 np.testing.assert_array_equal(got, expected)
+
+
+def test_the_rigid_bodies_of_the_explicit_sweep_are_their_batched_terms_bit_for_bit():
+    """``all_terms`` gives a flexible tree's rigid bodies by the one statement on Python floats
+    (``FlexibleSystem.rigid_terms_at_state``): every number equal to ``rigid_terms`` at ``B = 1`` (numpy ops), bit for
+    bit, with a time-varying load, a constant one and two carrying ends, and with ``carrying=True``."""
+    common = dict(length=1.3, bending_stiffness=5.0, mass_per_length=0.7, n_modes=2)
+    loads = (Load(point=(0.3, 0.1), force_x=lambda t: 0.3 + t, force_y=lambda t: math.sin(3 * t), moment=0.2),
+             Load(point=(-0.1, 0.2), force_y=-1.5))
+    model = PlanarModel("tree", [
+        Pinned("o", child="hub"),
+        RigidBody("hub", mass=1.7, inertia=0.05, center_of_mass=(0.04, -0.02), loads=loads,
+                  outboard={"a": (0.2, 0.05), "b": (-0.1, 0.3), "free": (0.0, -0.4)}),
+        FixedMounting("m", parent="hub.a", child="b1", angle=0.3), ModalBeam("b1", **common),
+        SmoothHinge("h", parent="hub.b", child="l"), RigidBody.uniform_link("l", mass=0.4, length=0.7)],
+        gravity=GRAVITY)
+    system = model.flexible_system
+    q, v, t = 0.3 * RNG.normal(size=model.n_coordinates), RNG.normal(size=model.n_coordinates), 0.37
+    for carrying in (False, True):
+        terms, (theta, omega, _, _, loads_t) = system.all_terms(q, v, t, carrying=carrying)
+        for j in system.rigid:
+            M, h, ends = system.rigid_terms(j, theta[j:j + 1], omega[j:j + 1], t, loads_t)
+            np.testing.assert_array_equal(terms[j][0], M[0])
+            np.testing.assert_array_equal(terms[j][1], h[0])
+            wanted = system.carrying[j] if carrying else range(len(ends))
+            assert [e is not None for e in terms[j][2]] == [e in wanted for e in range(len(ends))]
+            for got, (Kin, c, RF, _, _) in zip(terms[j][2], ends):
+                for value, expected in zip(got or (), (Kin[0], c[0], RF[0])):
+                    np.testing.assert_array_equal(value, expected)
+    assert np.any(terms[0][1] != 0.0) and len(model.load_body) == 2

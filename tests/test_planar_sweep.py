@@ -60,3 +60,29 @@ def test_fast_lagrange_path_equals_general_path():
     M, rhs = lag._generalised(q, qdot, 0.0, kin)
     assert _rel(lag.accelerations(q, qdot), np.linalg.solve(M, rhs)) <= 1e-12
     assert _rel(accelerations(model, q, qdot), np.linalg.solve(M, rhs)) <= 1e-12
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_coordinate_accelerations_put_each_body_angle_at_its_coordinate_name(seed):
+    """``coordinate_accelerations`` (the revolute chains' shortcut and the general mapping) on random body
+    accelerations: each body's ``alpha`` at the coordinate ``<body>.theta``, a free base's ``a_x, a_y`` at
+    ``<body>.x, <body>.y``, a translational-spring hinge's given translations at ``<body>.dx, <body>.dy`` (the expected
+    vector built from the coordinate names); a batch of states for models without those hinges.  The seeds give
+    chains with and without translational springs, trees and free bases."""
+    from ctmm.planar.sweep import coordinate_accelerations
+
+    model = random_tree(seed, 1 + seed % 6, chain=(seed % 2 == 0))
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(4, model.n_bodies, 3))
+    translation = {int(j): tuple(rng.normal(size=2)) for j in model.bushing_bodies}
+    expected = np.full((4, model.n_coordinates), np.nan)
+    for j, body in enumerate(model.body_names):
+        for suffix, value in (("theta", A[:, j, 2]), ("x", A[:, j, 0]), ("y", A[:, j, 1]),
+                              ("dx", translation.get(j, (np.nan,))[0]), ("dy", translation.get(j, (0, np.nan))[1])):
+            if f"{body}.{suffix}" in model.coordinates:
+                expected[:, model.coordinate_index(f"{body}.{suffix}")] = value
+    assert not np.isnan(expected).any()
+    np.testing.assert_array_equal(coordinate_accelerations(model, A[1], translation or None), expected[1])
+    if not translation:
+        np.testing.assert_array_equal(coordinate_accelerations(model, A), expected)
+        assert coordinate_accelerations(model, A[1]).flags.c_contiguous

@@ -42,6 +42,31 @@ _EYE3 = np.eye(3)
 _ZERO3 = np.zeros((3, 1))
 
 
+class _StateOps:
+    """The operations :func:`ctmm.planar.body_forms.rigid_body_terms` uses, at one real state: numpy's cosine and
+    sine as Python floats (the numbers of :data:`ctmm.ops.NUMPY` on the same angle; float arithmetic is the numpy
+    scalars' arithmetic) and 2-D matrices without the batch axis (the ``B = 1`` terms of the batched path)."""
+
+    @staticmethod
+    def cos(x: float) -> float:
+        return float(np.cos(x))
+
+    @staticmethod
+    def sin(x: float) -> float:
+        return float(np.sin(x))
+
+    @staticmethod
+    def block(rows: list) -> np.ndarray:
+        return np.array(rows, dtype=float)
+
+    @staticmethod
+    def transpose(a: np.ndarray) -> np.ndarray:
+        return a.T
+
+
+_STATE_OPS = _StateOps()
+
+
 @dataclass(frozen=True)
 class FlexibleSolution:
     """Accelerations, joint forces and modal accelerations at one instant.
@@ -135,6 +160,18 @@ class FlexibleSystem:
         return terms.M, terms.h[:, :, 0], [(terms.Kin[e], terms.c[e][:, :, 0], terms.RF[e], theta, omega)
                                            if e in points else None for e in self.end_points[j]]
 
+    def rigid_terms_at_state(self, j: int, theta: float, omega: float, loads, ends) -> list:
+        """:meth:`rigid_terms` of rigid body ``j`` at one real state, unbatched: ``[M (3, 3), h (3,), [(Kin, c (3,),
+        RF) or None per end]]`` (``ends``: indices of the wanted ends), the same numbers as :meth:`rigid_terms` at
+        ``B = 1`` (the one statement on Python floats instead of ``(1, 3, 3)`` arrays)."""
+        m = self.model
+        body_loads = [(*m.load_point[k], *loads[k]) for k in self.rigid_load_rows if m.load_body[k] == j]
+        points = {e: p for e, p in self.end_points[j].items() if e in ends}
+        terms = rigid_body_terms(_STATE_OPS, mass=self.mass[j], inertia=self.inertia[j], center_of_mass=self.com[j],
+                                 points=points, gravity=self.gravity, theta=theta, omega=omega, loads=body_loads)
+        return [terms.M, terms.h[:, 0], [(terms.Kin[e], terms.c[e][:, 0], terms.RF[e]) if e in points else None
+                                         for e in self.end_points[j]]]
+
     def body_terms(self, j: int, theta, omega, eta, eta_dot, t: float, loads):
         """Terms of body ``j`` (batched over the leading axis of ``theta``)."""
         if j in self.beam_data:
@@ -166,8 +203,8 @@ class FlexibleSystem:
                                              t, loads)
                 terms.append([M[0], h[0], [(K[0], c[0], R[0]) for K, c, R, _, _ in ends]])
             else:
-                M, h, ends = self.rigid_terms(j, theta[j:j + 1], omega[j:j + 1], t, loads, wanted)
-                terms.append([M[0], h[0], [None if e is None else (e[0][0], e[1][0], e[2][0]) for e in ends]])
+                terms.append(self.rigid_terms_at_state(j, float(theta[j]), float(omega[j]), loads,
+                                                       self.end_points[j] if wanted is None else wanted))
         return terms, (theta, omega, eta, eta_dot, loads)
 
     def hinge_torques(self, q, qdot, theta, omega, t: float) -> np.ndarray:

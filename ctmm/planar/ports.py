@@ -552,7 +552,8 @@ class ActuatorInputs:
         wrench[..., 2] = rcx * f[..., 1] - rcy * f[..., 0] + f[..., 2]
         if self.frame_wrench:
             for j, frame in self.frame_wrench.items():
-                f1, f2, moment = np.moveaxis(np.asarray(frame), -1, 0)
+                frame = np.asarray(frame)
+                f1, f2, moment = frame if frame.ndim == 1 else np.moveaxis(frame, -1, 0)   # one state: its entries
                 wrench[..., j, 0] += c[j] * f1 - s[j] * f2
                 wrench[..., j, 1] += s[j] * f1 + c[j] * f2
                 wrench[..., j, 2] += moment

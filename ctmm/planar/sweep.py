@@ -126,6 +126,8 @@ def coordinate_accelerations(model: PlanarModel, A: np.ndarray, translation: dic
                              ) -> np.ndarray:
     """Map body accelerations ``(nb, 3)`` (and hinge translations) to ``qddot``; ``A`` with a leading batch axis
     (without ``translation``): ``qddot`` of each row."""
+    if model.is_chain and not translation and not len(model.bushing_bodies):
+        return A[..., 2].astype(float)          # a revolute chain: one angle per body, in the bodies' order
     qddot = np.empty(A.shape[:-2] + (model.n_coordinates,))
     cb = model.coordinate_bodies
     qddot[..., model.theta_index[cb]] = A[..., cb, 2]
