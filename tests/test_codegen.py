@@ -325,3 +325,17 @@ def test_selected_outputs_share_one_copy_of_the_terms_in_the_c_and_give_the_same
     assert float(rate(*point)) == float(separate[0](*point))
     for mine, theirs in zip(loads(*point), separate[1](*point)):
         np.testing.assert_array_equal(np.asarray(mine), np.asarray(theirs))
+
+
+def test_input_reads_are_rewritten_only_as_whole_names_in_functions_starting_a_line():
+    """:func:`codegen.hoisted_input_reads` rewrites ``arg[i]? arg[i][k] : 0`` as a whole name (not ``xarg[i]? ...``)
+    in functions whose start begins a line; the rewritten text is worked by hand."""
+    head = ("static int casadi_f{}(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, "
+            "int mem) {{\n")
+    text = ("x" + head.format(0) + "  b=arg[1]? arg[1][7] : 0;\n}\n"
+            + head.format(1) + "  b=arg[3]? arg[3][12] : 0; c=xarg[0]? xarg[0][1] : 0; d=arg[0]? arg[0][0] : 0;\n}\n")
+    assert codegen.hoisted_input_reads(text) == (
+        "xstatic const casadi_real ctmm_zeros[13];\n" + head.format(0) + "  b=arg[1]? arg[1][7] : 0;\n}\n"
+        + head.format(1) + "  const casadi_real *ctmm_in0 = arg[0] ? arg[0] : ctmm_zeros;\n"
+        "  const casadi_real *ctmm_in3 = arg[3] ? arg[3] : ctmm_zeros;\n"
+        "  b=ctmm_in3[12]; c=xarg[0]? xarg[0][1] : 0; d=ctmm_in0[0];\n}\n")
