@@ -29,7 +29,7 @@ Scene (our parameters; the spatial counterpart of the planar ``flexible_manipula
 Outputs, through the verbs on the one controlled model:
 
 * time domain (``ctmm.simulate``, RK4, dt = 2 ms, its generated RK4 where a C compiler is present (the numpy
-  RK4 to round-off, :func:`generated_rk4`); full run also the implicit DT-TMM, Newmark + Newton, on PD + PZT): PD only, PD + PZT, and a delayed variant (yaw PD 10 ms late) -- joint angles, tip deflections ``w_y``, ``w_z`` in the forearm's frame, PZT voltages; the first two
+  RK4 to round-off, ``spatial_common.generated_rk4``); full run also the implicit DT-TMM, Newmark + Newton, on PD + PZT): PD only, PD + PZT, and a delayed variant (yaw PD 10 ms late) -- joint angles, tip deflections ``w_y``, ``w_z`` in the forearm's frame, PZT voltages; the first two
   against the independent assumed-modes Lagrange model (``ctmm/reference/spatial_beam_lagrange.py``: its
   own shapes and the piezo moments' generalised forces by virtual power, closed loop written there,
   ``solve_ivp`` DOP853, rtol 1e-10; its mass integrals on ``REFERENCE_POINTS`` Gauss points, converged);
@@ -59,9 +59,7 @@ import ctmm.spatial as sp
 import ctmm.stability
 from ctmm.stability_chart import stability_chart
 from ctmm.control import Feedback, with_feedback
-from ctmm.codegen import find_compiler
 from ctmm.control.controlled_model import ControlledModel
-from ctmm.errors import ModelError
 from ctmm.manipulator import CycloidalMove
 from ctmm.manipulator.compiled import cycloid_reference
 from ctmm.reference.spatial_beam_lagrange import HubBeam, SpatialBeamLagrange
@@ -69,6 +67,7 @@ from ctmm.scenario import accuracy
 from ctmm.spatial.beam_ports import patch_actuator, patch_sensor
 
 from .planar_common import save_figure
+from .spatial_common import generated_rk4
 
 NAME = "flexible_manipulator_3d"
 DESCRIPTION = ("3-D two-link arm (yaw + shoulder) with a flexible forearm bending in two planes: PD joint control "
@@ -129,18 +128,6 @@ def references() -> dict:
     """``{loop: r(t)}``, ``r = kp theta_d + kd theta_d_dot`` of each joint's cycloidal move, as numbers and on
     casadi symbols (:class:`~ctmm.compiled_references.SymbolicReference`: the generated RK4 takes them too)."""
     return {name: cycloid_reference(kp, kd, MOVES[name]) for name, (kp, kd) in GAINS.items()}
-
-
-def generated_rk4() -> bool:
-    """Whether the RK4 runs take the generated RK4 (``compiled=True``): where a C compiler is present.  It is the
-    numpy RK4 to round-off (``tests/test_spatial_beam_body_actuators.py``) and, for these runs of 750 .. 2000
-    steps, 30-40x cheaper with a cached kernel (first compile ~2 s CPU at -O0, once for the three loop sets:
-    one structure); ``ctmm.simulate``'s own default waits for 5000 steps."""
-    try:
-        find_compiler()
-    except ModelError:
-        return False
-    return True
 
 
 # -- the independent reference ---------------------------------------------------------------------------
