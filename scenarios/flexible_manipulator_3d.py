@@ -28,8 +28,8 @@ Scene (our parameters; the spatial counterpart of the planar ``flexible_manipula
 
 Outputs, through the verbs on the one controlled model:
 
-* time domain (``ctmm.simulate``, RK4, dt = 2 ms; full run also the implicit DT-TMM, Newmark + Newton, on
-  PD + PZT): PD only, PD + PZT, and a delayed variant (yaw PD 10 ms late) -- joint angles, tip deflections ``w_y``, ``w_z`` in the forearm's frame, PZT voltages; the first two
+* time domain (``ctmm.simulate``, RK4, dt = 2 ms, its generated RK4 where a C compiler is present (the numpy
+  RK4 to round-off, ``spatial_common.generated_rk4``); full run also the implicit DT-TMM, Newmark + Newton, on PD + PZT): PD only, PD + PZT, and a delayed variant (yaw PD 10 ms late) -- joint angles, tip deflections ``w_y``, ``w_z`` in the forearm's frame, PZT voltages; the first two
   against the independent assumed-modes Lagrange model (``ctmm/reference/spatial_beam_lagrange.py``: its
   own shapes and the piezo moments' generalised forces by virtual power, closed loop written there,
   ``solve_ivp`` DOP853, rtol 1e-10; its mass integrals on ``REFERENCE_POINTS`` Gauss points, converged);
@@ -61,11 +61,13 @@ from ctmm.stability_chart import stability_chart
 from ctmm.control import Feedback, with_feedback
 from ctmm.control.controlled_model import ControlledModel
 from ctmm.manipulator import CycloidalMove
+from ctmm.manipulator.compiled import cycloid_reference
 from ctmm.reference.spatial_beam_lagrange import HubBeam, SpatialBeamLagrange
 from ctmm.scenario import accuracy
 from ctmm.spatial.beam_ports import patch_actuator, patch_sensor
 
 from .planar_common import save_figure
+from .spatial_common import generated_rk4
 
 NAME = "flexible_manipulator_3d"
 DESCRIPTION = ("3-D two-link arm (yaw + shoulder) with a flexible forearm bending in two planes: PD joint control "
@@ -123,9 +125,9 @@ def controlled(pzt: bool, delay: float = 0.0, gravity: tuple[float, float, float
 
 
 def references() -> dict:
-    """``{loop: r(t)}``, ``r = kp theta_d + kd theta_d_dot`` of each joint's cycloidal move."""
-    return {name: (lambda t, kp=kp, kd=kd, move=MOVES[name]: kp * move.angle(t) + kd * move.rate(t))
-            for name, (kp, kd) in GAINS.items()}
+    """``{loop: r(t)}``, ``r = kp theta_d + kd theta_d_dot`` of each joint's cycloidal move, as numbers and on
+    casadi symbols (:class:`~ctmm.compiled_references.SymbolicReference`: the generated RK4 takes them too)."""
+    return {name: cycloid_reference(kp, kd, MOVES[name]) for name, (kp, kd) in GAINS.items()}
 
 
 # -- the independent reference ---------------------------------------------------------------------------
@@ -193,13 +195,15 @@ def _reference_closed(reference: SpatialBeamLagrange, pzt: bool) -> tuple[np.nda
 def _simulate(pzt: bool, delay: float, t_final: float, store_every: int, method: str = "rk4",
               gravity: tuple[float, float, float] = NO_GRAVITY) -> dict:
     system = controlled(pzt, delay, gravity)
-    result = ctmm.simulate(system, t_final, DT, method=method, references=references(), store_every=store_every)
+    compiled = method == "rk4" and generated_rk4()
+    result = ctmm.simulate(system, t_final, DT, method=method, references=references(), store_every=store_every,
+                           compiled=compiled)
     weights = [np.asarray(system.ports.sensors[f"arm.tip.{w}"].weights) for w in ("w_y", "w_z")]
     eta = np.column_stack([result[f"arm.{s}"] for s in system.plant.bodies[2].coordinate_suffixes])
     voltages = np.column_stack([result[f"pzt_{a}.u"] for a in ("z", "y")]) if pzt else np.zeros((eta.shape[0], 2))
     return {"t": np.asarray(result.time), "angles": np.column_stack([result["yaw.angle"], result["shoulder.angle"]]),
             "tip": eta @ np.column_stack(weights), "voltages": voltages, "wall": float(result.info["wall_time_s"]),
-            "result": result}
+            "result": result, "method": str(result.info["method"])}
 
 
 def _flexible_modes(system: ControlledModel, above: float = 15.0) -> list[tuple[float, float]]:
@@ -360,7 +364,7 @@ def run(output_dir: Path, quick: bool = False, results: dict | None = None) -> d
         "accuracy": [
             accuracy("tip deflection error vs Lagrange", time_error, "% of peak", BOUND_TIME,
                      "max_t |(w_y, w_z)_tip,TMM - (w_y, w_z)_tip,Lagrange| / max_t |reference| x 100, PD only and "
-                     "PD + PZT (ctmm.simulate RK4, dt = 2 ms; full run also the DT-TMM Newmark on PD + PZT); "
+                     "PD + PZT (ctmm.simulate RK4, dt = 2 ms, generated where a C compiler is present; full run also the DT-TMM Newmark on PD + PZT); "
                      "reference DOP853 rtol 1e-10 (1e-9 quick)",
                      source="docs/manipulator.md: tip error << 0.1 % of the peak (the planar scenario's bound)"),
             accuracy("closed-loop FRF vs reference linearisation", frf_error, "1", BOUND_LINEAR,
@@ -374,6 +378,7 @@ def run(output_dir: Path, quick: bool = False, results: dict | None = None) -> d
                      source="an exact root: 0 to round-off (the spatial_elastic_hinge_control scenario's bound)")],
         "errors": errors,
         "wall_time_s": wall,
+        "rk4_method": sims["PD + PZT"]["method"],
         "real_time_factor": float(2 * t_final / wall),
         "reference_wall_time_s": ref_wall,
         "frf_wall_time_s": frf_wall,

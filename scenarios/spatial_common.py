@@ -9,11 +9,26 @@ import numpy as np
 
 import ctmm
 import ctmm.spatial as sp
+from ctmm.codegen import find_compiler
+from ctmm.errors import ModelError
 from ctmm.reference import spatial_tree as ref
 from ctmm.reference.spatial_kinematics import orientations
 from ctmm.scenario import accuracy
 
 STATE_BOUND = 1e-6   # [rad/s]: RK4 at the scenario step against the reference at a finer step
+
+
+def generated_rk4() -> bool:
+    """Whether the spatial scenarios' fixed-step RK4 runs take the generated RK4 (``ctmm.simulate(...,
+    compiled=True)``): where a C compiler is present.  It is the numpy RK4 to round-off (the contract of the
+    generated paths: tests/test_spatial_compiled*.py, tests/test_spatial_beam_body_actuators.py) and, on these runs
+    of a few hundred to a few thousand steps, 10-40x cheaper with a cached kernel (first compile ~1-2 s CPU at -O0);
+    ``ctmm.simulate``'s own default waits for 5000 steps (:mod:`ctmm.compiled_default`)."""
+    try:
+        find_compiler()
+    except ModelError:
+        return False
+    return True
 
 
 def reference_tree(model: sp.SpatialModel) -> ref.SpatialTree:
@@ -72,7 +87,7 @@ def run_against_reference(model: sp.SpatialModel, q0: np.ndarray, v0: np.ndarray
     reference = ref.simulate(tree, to_reference(model, q0)[0], v0, t_final, dt / refinement,
                               store_every=refinement)
     reference_time = time.perf_counter() - start
-    rk4 = ctmm.simulate(model, t_final, dt, x0=q0, v0=v0)
+    rk4 = ctmm.simulate(model, t_final, dt, x0=q0, v0=v0, compiled=generated_rk4())
     start = time.perf_counter()
     dop = ctmm.simulate(model, t_final, dt, method="DOP853", x0=q0, v0=v0, rtol=1e-10, atol=1e-10)
     dop_time = time.perf_counter() - start
@@ -111,6 +126,7 @@ def scenario_summary(runs: dict, body: int, label: str, parameters: dict) -> dic
         "velocity_max_error_dop853": runs["dop853_velocity_error"],
         "omega_range_rad_s": runs["omega_range"],
         "wall_time_s": runs["rk4_wall_time_s"],
+        "rk4_method": str(runs["rk4"].info["method"]),
         "dop853_wall_time_s": runs["dop853_wall_time_s"],
         "reference_wall_time_s": runs["reference_wall_time_s"],
         "reference_step_s": float(runs["reference"].time[1] - runs["reference"].time[0]) / runs["refinement"],

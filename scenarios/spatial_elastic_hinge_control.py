@@ -7,8 +7,9 @@ kg m^2, centre of mass 0.25 m above the hinge; hinge translational stiffness 2e4
 rotary stiffness [[40, 3, 0], [3, 55, 1], [0, 1, 30]] N m/rad, dampers 5 N s/m (translation) and
 (0.2, 0.3, 0.1) N m s/rad; gravity 9.81 m/s^2 along -z; start: rotation 0.2 rad about z after 0.1 rad
 about x (``R = Rx(0.1) Rz(0.2)``), yaw rate 1 rad/s.  Loop ``body.moment_z = -(kp angle_z + kd
-omega_z)(t - tau)``, kp = 10 N m/rad, kd = 0.5 N m s/rad; the delayed run at half the delay margin.
-RK4 at 1 ms over 3 s (quick: 0.5 s).
+omega_z)(t - tau)``, kp = 10 N m/rad, kd = 0.5 N m s/rad; the delayed run at half the delay margin
+(rounded to whole steps: 20 ms).  RK4 at 1 ms over 3 s (quick: 0.5 s), on the generated RK4 where a C
+compiler is present (the numpy RK4 to round-off, ``spatial_common.generated_rk4``).
 
 Accuracy figures:
 
@@ -43,6 +44,7 @@ from ctmm.scene_files import load_scene
 from ctmm.stability import delay_margin
 
 from .planar_common import save_figure
+from .spatial_common import generated_rk4
 
 NAME = "spatial_elastic_hinge_control"
 DESCRIPTION = ("Rigid body on a 6-DOF elastic hinge: theta_z without control, with a real-time and a delayed "
@@ -165,11 +167,13 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     start = time.perf_counter()
     margin = delay_margin(open_loop_system(plant, 0.0))
     margin_time = time.perf_counter() - start
-    delay = 0.5 * margin.critical_delay
-    runs = {"uncontrolled": ctmm.simulate(plant, t_final, dt, x0=x0, v0=v0d, outputs=outputs),
-            "PD": ctmm.simulate(with_feedback(plant, [loop()]), t_final, dt, x0=x0, v0=v0d, outputs=outputs),
+    delay = dt * max(1, round(0.5 * margin.critical_delay / dt))     # half the margin in whole steps (generated ring)
+    compiled = generated_rk4()                  # the generated RK4 where a compiler is present (numpy to round-off)
+    runs = {"uncontrolled": ctmm.simulate(plant, t_final, dt, x0=x0, v0=v0d, outputs=outputs, compiled=compiled),
+            "PD": ctmm.simulate(with_feedback(plant, [loop()]), t_final, dt, x0=x0, v0=v0d, outputs=outputs,
+                                compiled=compiled),
             "delayed PD": ctmm.simulate(with_feedback(plant, [loop(delay)]), t_final, dt, x0=x0, v0=v0d,
-                                        outputs=outputs)}
+                                        outputs=outputs, compiled=compiled)}
     tree = reference_tree(False)
     reference, reference_time, figures = {}, 0.0, []
     for key, controlled in (("uncontrolled", False), ("PD", True)):
@@ -194,7 +198,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     t = runs["PD"].time
     fig, ax = plt.subplots(figsize=(8, 4.2))
     for key, style in (("uncontrolled", "C0"), ("PD", "C1"), ("delayed PD", "C2")):
-        label = key if key != "delayed PD" else f"PD delayed {delay * 1e3:.1f} ms (half the margin)"
+        label = key if key != "delayed PD" else f"PD delayed {delay * 1e3:.1f} ms (half the margin, whole steps)"
         ax.plot(t, runs[key]["body.angle_z"], color=style, label=f"ctmm, {label}")
     for key, style in (("uncontrolled", "C0"), ("PD", "C1")):
         ax.plot(t[::20], reference[key][::20], "o", ms=3, color=style, label=f"Newton-Euler, {key}")
@@ -212,6 +216,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
         "theta_z_final_abs_rad": {key: float(abs(r["body.angle_z"][-1])) for key, r in runs.items()},
         "wall_time_s": float(sum(r.info["wall_time_s"] for r in runs.values())),
         "run_wall_times_s": {key: float(r.info["wall_time_s"]) for key, r in runs.items()},
+        "rk4_method": str(runs["PD"].info["method"]),
         "delay_margin_wall_time_s": margin_time,
         "reference_wall_time_s": reference_time,
         "parameters": {"mass_kg": MASS, "inertia_kg_m2": INERTIA, "center_of_mass_m": COM,

@@ -30,6 +30,9 @@ def test_flexible_manipulator_3d_quick_meets_its_bounds(quick_scenario):
     assert 0.0 < summary["stability_chart"]["stable_fraction"] < 1.0
     assert all(e < 0.05 * 0.5 for e in summary["joint_final_error_rad"])   # within 5 % of the moves (>= 30 deg)
     assert data["wall_time_s"] > 0 and data["reference_wall_time_s"] > 0
+    from ctmm.scenarios.spatial_common import generated_rk4
+
+    assert summary["rk4_method"] == ("rk4-generated" if generated_rk4() else "rk4")   # generated with a compiler
 
 
 def test_reference_mass_integrals_are_converged():

@@ -8,6 +8,13 @@ import numpy as np
 import pytest
 
 
+def expected_rk4_method() -> str:
+    """``result.info["method"]`` of the spatial scenarios' RK4 runs: generated where a C compiler is present."""
+    from ctmm.scenarios.spatial_common import generated_rk4
+
+    return "rk4-generated" if generated_rk4() else "rk4"
+
+
 @pytest.mark.parametrize("name", ["spatial_chain", "branch_system"])
 def test_spatial_scenario_quick_meets_its_bounds(name, quick_scenario):
     summary, tmp_path = quick_scenario(name)
@@ -19,6 +26,7 @@ def test_spatial_scenario_quick_meets_its_bounds(name, quick_scenario):
     assert summary["velocity_max_error_rk4"] < 1e-6
     assert data["wall_time_s"] > 0 and data["reference_wall_time_s"] > 0
     assert np.isclose(data["parameters"]["dt_s"], 1e-3)
+    assert summary["rk4_method"] == expected_rk4_method()     # the generated RK4 where a compiler is present
 
 
 def test_reference_conversion_puts_quaternion_scalar_last():
@@ -47,6 +55,7 @@ def test_elastic_hinge_control_quick_meets_its_bounds(quick_scenario):
     assert ranges["PD"] < 0.9 * ranges["uncontrolled"]               # and the loop damps it
     assert 0.0 < summary["delay_s"] < summary["delay_margin_s"] < 1.0
     assert data["wall_time_s"] > 0 and data["reference_wall_time_s"] > 0
+    assert summary["rk4_method"] == expected_rk4_method()
 
 
 def test_robot_arm_quick_meets_its_bounds(quick_scenario):
