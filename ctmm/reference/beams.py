@@ -474,9 +474,17 @@ def spinup_angle(t, *, final_rate: float = 6.0, ramp_time: float = 15.0
 
     ``θ = (Ω/T)[t^2/2 + (T/2π)^2 (cos(2πt/T) - 1)]`` for ``t <= T``, ``Ω (t - T/2)`` after.
     """
-    t = np.asarray(t, dtype=float)
     W, T = final_rate, ramp_time
     w = 2 * np.pi / T
+    if isinstance(t, (float, int, np.floating, np.integer)) and not isinstance(t, bool):
+        t = float(t)        # one time (a driving law's call): only its branch, the same operations
+        if t <= T:
+            values = (W / T * (t * t / 2 + (np.cos(w * t) - 1) / w ** 2), W / T * (t - np.sin(w * t) / w),
+                      W / T * (1 - np.cos(w * t)))
+        else:
+            values = (W * (t - T / 2), W, 0.0)
+        return tuple(np.asarray(value, dtype=float) for value in values)
+    t = np.asarray(t, dtype=float)
     ramp = t <= T
     theta = np.where(ramp, W / T * (t * t / 2 + (np.cos(w * t) - 1) / w ** 2), W * (t - T / 2))
     rate = np.where(ramp, W / T * (t - np.sin(w * t) / w), W)
@@ -566,11 +574,12 @@ def kane_spinup(*, length: float = 10.0, bending_stiffness: float = 1.4e4, mass_
     phi_tip = np.array([clamped_free_mode(b, 1.0) for b in betas])
     Minv = np.linalg.inv(M)
     Kg = KG if geometric_stiffening else np.zeros_like(KG)
+    softening = Kg - M                             # of the spin rate squared, once
 
     def rhs(t, y):
         q, qd = y[:n_modes], y[n_modes:]
         _, rate, accel = spinup_angle(t, final_rate=final_rate, ramp_time=ramp_time)
-        qdd = Minv @ (-(K + rate * rate * (Kg - M)) @ q - accel * p)
+        qdd = Minv @ (-(K + rate * rate * softening) @ q - accel * p)
         return np.concatenate([qd, qdd])
 
     if t_eval is None:
