@@ -474,9 +474,14 @@ def spinup_angle(t, *, final_rate: float = 6.0, ramp_time: float = 15.0
 
     ``θ = (Ω/T)[t^2/2 + (T/2π)^2 (cos(2πt/T) - 1)]`` for ``t <= T``, ``Ω (t - T/2)`` after.
     """
-    t = np.asarray(t, dtype=float)
     W, T = final_rate, ramp_time
     w = 2 * np.pi / T
+    if isinstance(t, (float, int, np.floating, np.integer)):     # one time (a driving law): its branch only
+        t = float(t)
+        one = ((W / T * (t * t / 2 + (np.cos(w * t) - 1) / w ** 2), W / T * (t - np.sin(w * t) / w),
+                W / T * (1 - np.cos(w * t))) if t <= T else (W * (t - T / 2), W, 0.0))
+        return tuple(np.asarray(value, dtype=float) for value in one)
+    t = np.asarray(t, dtype=float)
     ramp = t <= T
     theta = np.where(ramp, W / T * (t * t / 2 + (np.cos(w * t) - 1) / w ** 2), W * (t - T / 2))
     rate = np.where(ramp, W / T * (t - np.sin(w * t) / w), W)
@@ -565,17 +570,13 @@ def kane_spinup(*, length: float = 10.0, bending_stiffness: float = 1.4e4, mass_
     p = rhoA * (phi * wq) @ x
     phi_tip = np.array([clamped_free_mode(b, 1.0) for b in betas])
     Minv = np.linalg.inv(M)
-    Kg = KG if geometric_stiffening else np.zeros_like(KG)
+    softening = (KG if geometric_stiffening else np.zeros_like(KG)) - M     # of the spin rate squared, once
 
     def rhs(t, y):
-        q, qd = y[:n_modes], y[n_modes:]
         _, rate, accel = spinup_angle(t, final_rate=final_rate, ramp_time=ramp_time)
-        qdd = Minv @ (-(K + rate * rate * (Kg - M)) @ q - accel * p)
-        return np.concatenate([qd, qdd])
+        return np.concatenate([y[n_modes:], Minv @ (-(K + rate * rate * softening) @ y[:n_modes] - accel * p)])
 
-    if t_eval is None:
-        t_eval = np.linspace(0.0, t_final, 2001)
-    t_eval = np.asarray(t_eval, dtype=float)
+    t_eval = np.asarray(np.linspace(0.0, t_final, 2001) if t_eval is None else t_eval, dtype=float)
     # integrate the ramp and the constant-rate phase separately (θ'' has a kink at T_s)
     pieces_t, pieces_y = [], []
     y0 = np.zeros(2 * n_modes)
@@ -591,8 +592,7 @@ def kane_spinup(*, length: float = 10.0, bending_stiffness: float = 1.4e4, mass_
         pieces_y.append(sol.y)
         y0 = sol.sol(t1)
     t_out = np.concatenate(pieces_t)
-    y = np.concatenate(pieces_y, axis=1)
-    q = y[:n_modes]
+    q = np.concatenate(pieces_y, axis=1)[:n_modes]
     _, rate, _ = spinup_angle(t_out, final_rate=final_rate, ramp_time=ramp_time)
     return SpinUpResult(t=t_out, tip_deflection=phi_tip @ q, modal_coordinates=q, hub_rate=rate,
                         first_frequency=float(omegas[0]), geometric_stiffening=geometric_stiffening,

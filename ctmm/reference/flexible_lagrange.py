@@ -265,18 +265,19 @@ class FlexibleLagrange:
         n = self.n
         g = np.asarray(m.gravity, float)
         Q = np.zeros(n)
-        ext = []     # per body: list of (point, force, moment)
+        ext = []     # per body: (point forces (K, 2) of the distributed load or None, list of (point, force, moment))
         for j in range(self.nb):
             P = pts[j]
             Q += np.einsum("k,kin,i->n", P["m"], P["J"], g)
-            items = [(P["r"][k], P["m"][k] * g, 0.0) for k in range(len(P["m"]))]
+            items = []
+            distributed = None
             f = frames[j]
             if j in self.beams:
                 bm = self.beams[j]
                 qx, qy = float(bm.distributed[0](t)), float(bm.distributed[1](t))
                 fd = P["R"] @ np.array([qx, qy])
                 Q += np.einsum("k,kin,i->n", bm.w, P["J"], fd)
-                items += [(P["r"][k], bm.w[k] * fd, 0.0) for k in range(len(bm.w))]
+                distributed = bm.w[:, None] * fd[None, :]           # w_k fd at the mass points P["r"]
                 eta, etad = q[self.eta_index[j]], u[self.eta_index[j]]
                 gen = -bm.K @ eta - bm.D @ etad
                 for hook in bm.hooks:
@@ -302,7 +303,7 @@ class FlexibleLagrange:
                     Jw[self.eta_index[j][:bm.nq]] += dphi_l
                     Q += Jl.T @ force + Jw * moment
                     items.append((f["r"] + rho, force, moment))
-            ext.append(items)
+            ext.append((distributed, items))
         loads = m.loads(t) if len(m.load_body) else np.zeros((0, 3))
         for k, body in enumerate(m.load_body):
             body = int(body)
@@ -313,7 +314,7 @@ class FlexibleLagrange:
             rho = R @ m.load_point[k]
             Jl = f["Jr"] + np.outer(_perp(rho), f["Jth"])
             Q += Jl.T @ loads[k, :2] + f["Jth"] * loads[k, 2]
-            ext[body].append((f["r"] + rho, loads[k, :2].copy(), float(loads[k, 2])))
+            ext[body][1].append((f["r"] + rho, loads[k, :2].copy(), float(loads[k, 2])))
         # hinge torques: tau on the child, -tau on the parent end (relative to its end angle)
         reference, rate, torque = m.hinge_laws(t)
         for j in range(self.nb):
@@ -394,9 +395,23 @@ class FlexibleLagrange:
             P = pts[k]
             f0 += np.einsum("k,ki->i", P["m"], P["a"]) - P["m"].sum() * g
             f1 += np.einsum("k,kin->in", P["m"], P["J"])
-            for (_, force, _) in ext[k][len(P["m"]):]:
+            distributed, items = ext[k]
+            if distributed is not None and np.any(distributed):     # the load's point forces, in order
+                for force in distributed:
+                    f0 -= force
+            for (_, force, _) in items:
                 f0 -= force
         return f0, f1
+
+    def _external_items(self, j, pts, ext) -> list:
+        """Every external ``(point, force, moment)`` on body ``j``: the weights of its mass points, the point
+        forces of a beam's distributed load, then its point loads."""
+        P, g = pts[j], np.asarray(self.model.gravity, float)
+        distributed, items = ext[j]
+        out = [(P["r"][k], P["m"][k] * g, 0.0) for k in range(len(P["m"]))]
+        if distributed is not None:
+            out += [(P["r"][k], distributed[k], 0.0) for k in range(len(distributed))]
+        return out + items
 
     # -- public -------------------------------------------------------------------------------
     def accelerations(self, q, qdot, t: float = 0.0) -> np.ndarray:
@@ -475,7 +490,7 @@ class FlexibleLagrange:
                 else:
                     inertia, turn = self._sections(k, frames)
                     tau += inertia @ (turn @ ud + frames[k]["ab"])
-                for (point, fe, me) in ext[k]:
+                for (point, fe, me) in self._external_items(k, pts, ext):
                     f -= fe
                     tau -= _cross(point - r0, fe) + me
             out[j] = (f[0], f[1], tau)

@@ -249,6 +249,7 @@ class GlobalChain:
         self.segments = list(segments)
         self.gravity = np.asarray(gravity, float)
         self.theta_index, self.u_index, self.beams, self.plates, self.net_stiffness = [], [], {}, {}, {}
+        self._rest: dict[int, list] = {}          # a net's exact springs: rest lengths [m], in order
         k = 0
         for j, seg in enumerate(self.segments):
             if isinstance(seg, (ParticleNet, MembranePlate)):
@@ -260,6 +261,11 @@ class GlobalChain:
                     self.plates[j] = _plate(seg)
                 elif seg.linear:
                     self.net_stiffness[j] = _linear_net(seg)
+                else:
+                    X = np.asarray(seg.positions, float)
+                    ends = [[X[e] if isinstance(e, (int, np.integer)) else np.asarray(e, float) for e in (a, b)]
+                            for a, b, _ in seg.springs]
+                    self._rest[j] = [np.linalg.norm(rb - ra) for ra, rb in ends]
                 count = self.plates[j].stiffness.shape[0] if j in self.plates else 2 * len(seg.masses)
                 self.u_index.append(np.arange(k, k + count))
                 k += count
@@ -308,14 +314,13 @@ class GlobalChain:
                 P = X.shape[0]
                 Jp = np.broadcast_to(J_base, (P,) + J_base.shape).copy()
                 Jp[:, :, it] += rho @ (R @ _J).T
-                for p in range(P):
-                    Jp[p][:, iu[2 * p:2 * p + 2]] += R
+                Jp[np.arange(P)[:, None], :, iu.reshape(P, 2)] += R.T          # particle p's own (x, y) columns
                 bias = b_base - w * w * rho @ R.T + 2 * w * ud @ (R @ _J).T
                 out.append((np.asarray(seg.masses, float), base + rho @ R.T, Jp, bias, j))
                 if seg.outboard is not None:                       # the next segment hangs at this particle
                     e = seg.outboard
                     base, J_base, b_base = base + R @ rho[e], Jp[e], bias[e]
-                for a, b, k in () if seg.linear else seg.springs:                     # ends: (position, Jacobian) of particle or anchor
+                for (a, b, k), rest in zip(() if seg.linear else seg.springs, self._rest.get(j, ())):
                     ends = []
                     for e in (a, b):
                         if isinstance(e, (int, np.integer)):
@@ -325,8 +330,6 @@ class GlobalChain:
                             Ja = J_base.copy()
                             Ja[:, it] += R @ _J @ anchor
                             ends.append((base + R @ anchor, Ja))
-                    rest = np.linalg.norm((X[b] if isinstance(b, (int, np.integer)) else np.asarray(b, float))
-                                          - (X[a] if isinstance(a, (int, np.integer)) else np.asarray(a, float)))
                     springs.append((ends[0], ends[1], k, rest, seg.damping))
                 continue
             if j in self.beams:

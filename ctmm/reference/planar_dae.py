@@ -51,9 +51,6 @@ def _rotation(theta: float) -> np.ndarray:
 _TURN = np.array([[0.0, -1.0], [1.0, 0.0]])
 
 
-_SIDE_SIGNS = np.array([1.0, -1.0])[:, None, None]    # joint sides a, b: Phi = P_a - P_b
-
-
 @dataclass
 class _Body:
     name: str
@@ -151,6 +148,7 @@ class PlanarDAE:
         self.drives: list[tuple] = []               # (a, b, angle, rate, acceleration): theta_b - theta_a = angle(t)
         self._history: Callable | None = None       # t -> (q, v) of the completed run (delayed motors)
         self._layout: tuple | None = None          # (key, arrays) of _joint_layout
+        self._block: tuple | None = None           # (key, matrix) of _mass_block
 
     def add_body(self, name: str, *, mass: float, inertia: float, points: Mapping[str, Sequence[float]]) -> None:
         """A body with ``mass`` [kg], ``inertia`` about its centre of mass [kg m^2] and named ``points``
@@ -290,7 +288,7 @@ class PlanarDAE:
 
     def constraints(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``Phi``, ``Phi'``, ``Phi_q`` and ``gamma`` of all joints (all joints at once, both sides of every joint
-        at once: the ground is one more body at rest at the origin, its columns dropped)."""
+        at once: the ground is one more body at rest at the origin, its columns dropped; ``Phi = P_a - P_b``)."""
         nb, nj = len(self.bodies), len(self.joints)
         if nj == 0:
             return np.zeros(0), np.zeros(0), np.zeros((0, 3 * nb)), np.zeros(0)
@@ -299,17 +297,20 @@ class PlanarDAE:
         v_all = np.concatenate([np.asarray(v, float), np.zeros(3)]).reshape(nb + 1, 3)
         theta, omega = q_all[bodies, 2], v_all[bodies, 2]                     # (2, nj): sides a, b
         cos, sin = np.cos(theta), np.sin(theta)
-        r = np.stack([cos * s[..., 0] - sin * s[..., 1], sin * s[..., 0] + cos * s[..., 1]], axis=-1)
-        turned = np.stack([-r[..., 1], r[..., 0]], axis=-1)                   # _TURN @ r
-        signed = _SIDE_SIGNS * turned
-        phi = (_SIDE_SIGNS * (q_all[bodies, :2] + r)).sum(axis=0)            # P_a - P_b
-        phi_dot = (_SIDE_SIGNS * (v_all[bodies, :2] + omega[..., None] * turned)).sum(axis=0)
-        gamma = (_SIDE_SIGNS * r * (omega ** 2)[..., None]).sum(axis=0)
+        r, turned = np.empty(s.shape), np.empty(s.shape)                     # (2, nj, 2)
+        r[..., 0] = cos * s[..., 0] - sin * s[..., 1]
+        r[..., 1] = sin * s[..., 0] + cos * s[..., 1]
+        turned[..., 0] = -r[..., 1]                                           # _TURN @ r
+        turned[..., 1] = r[..., 0]
+        points = q_all[bodies, :2] + r
+        velocities = v_all[bodies, :2] + omega[..., None] * turned
+        centripetal = r * (omega ** 2)[..., None]
         jac = jac0.copy()
         rows = np.arange(nj)
-        jac[rows, :, 3 * bodies[0] + 2] = signed[0]
-        jac[rows, :, 3 * bodies[1] + 2] = signed[1]
-        return phi.ravel(), phi_dot.ravel(), jac[:, :, :3 * nb].reshape(2 * nj, 3 * nb), gamma.ravel()
+        jac[rows, :, 3 * bodies[0] + 2] = turned[0]
+        jac[rows, :, 3 * bodies[1] + 2] = -turned[1]
+        return ((points[0] - points[1]).ravel(), (velocities[0] - velocities[1]).ravel(),
+                jac[:, :, :3 * nb].reshape(2 * nj, 3 * nb), (centripetal[0] - centripetal[1]).ravel())
 
     def _generalised_forces(self, q: np.ndarray, v: np.ndarray, t: float = 0.0) -> np.ndarray:
         nb = len(self.bodies)
@@ -346,16 +347,27 @@ class PlanarDAE:
         ``t`` [s] (the motors' laws; delayed motors read the run in progress)."""
         return self._solve_rows(q, v, baumgarte, t)[:2]
 
+    def _mass_block(self, rows: int) -> np.ndarray:
+        """A new ``(3 nb + rows) x (3 nb + rows)`` matrix, zero but for the bodies' diagonal mass block ``diag(m, m,
+        J)`` (the constant part of the system of :meth:`_solve_rows`; built once per set of bodies)."""
+        size = 3 * len(self.bodies) + rows
+        key = (tuple(map(id, self.bodies)), rows)
+        if self._block is None or self._block[0] != key:
+            block = np.zeros((size, size))
+            block[:3 * len(self.bodies), :3 * len(self.bodies)] = np.diag(
+                np.concatenate([[b.mass, b.mass, b.inertia] for b in self.bodies]))
+            self._block = (key, block)
+        return self._block[1].copy()
+
     def _solve_rows(self, q: np.ndarray, v: np.ndarray, baumgarte: float, t: float
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`solve` and the joints' ``Phi`` [m] at ``(q, v)`` (the drift of a stored row)."""
         nb = len(self.bodies)
-        mass = np.concatenate([[b.mass, b.mass, b.inertia] for b in self.bodies])
         joints = self.constraints(q, v)
-        phi, phi_dot, jac, gamma = (np.concatenate([x, y]) for x, y in zip(joints, self._drive_rows(q, v, t)))
+        phi, phi_dot, jac, gamma = ((np.concatenate([x, y]) if len(y) else x)
+                                    for x, y in zip(joints, self._drive_rows(q, v, t)))
         m = len(phi)
-        A = np.zeros((3 * nb + m, 3 * nb + m))
-        A[:3 * nb, :3 * nb] = np.diag(mass)
+        A = self._mass_block(m)
         A[:3 * nb, 3 * nb:] = jac.T
         A[3 * nb:, :3 * nb] = jac
         rhs = np.concatenate([self._generalised_forces(q, v, t),

@@ -264,8 +264,8 @@ class SpatialBeamLagrange:
             tip = {"center": c_t, "velocity": v_t}
         # Lagrange residual
         dT_du = ca.gradient(T, u)
-        residual = (ca.mtimes(ca.jacobian(dT_du, q), u) + ca.mtimes(ca.jacobian(dT_du, u), ud)
-                    - ca.gradient(T, q) + ca.gradient(V, q))
+        inertia = ca.jacobian(dT_du, u)                               # d2T/du2: the residual's ud part is inertia ud
+        residual = ca.mtimes(ca.jacobian(dT_du, q), u) - ca.gradient(T, q) + ca.gradient(V, q)   # the rest
         tau = ca.SX.sym("tau", n)                                     # applied generalised forces
         generalized = ca.SX(tau)
         for i, c_joint in enumerate(p.joint_damping):
@@ -319,9 +319,9 @@ class SpatialBeamLagrange:
                                                                                     _rot([1, 0, 0], twist_a))))
                 jac = ca.jacobian(_vee_rate(R_s, q, u), u)
             generalized += ca.mtimes(jac.T, direction) * act[k]
-        residual = residual - generalized
-        M = ca.jacobian(residual, ud)
-        rhs = -ca.substitute(residual, ud, ca.SX.zeros(n))
+        # d/dt dT/du - dT/dq + dV/dq - Q = M ud - rhs (affine in ud: Q through the geometric stiffness's N)
+        M = inertia - ca.jacobian(generalized, ud)
+        rhs = -(residual - ca.substitute(generalized, ud, ca.SX.zeros(n)))
         rates = ca.solve(M, rhs)
         self._rates = ca.Function("rates", [q, u, tau, act], [rates])
         self._symbols = (q, u, tau, act, rates, M, rhs, T + V)

@@ -52,10 +52,18 @@ def _hat(v) -> np.ndarray:
     return np.array([[0.0 * v[0], -v[2], v[1]], [v[2], 0.0 * v[0], -v[0]], [-v[1], v[0], 0.0 * v[0]]])
 
 
-def _axis_rotation(axis, angle) -> np.ndarray:
+def _axis_terms(axis) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``([a]x, [a]x^2, a)`` of the unit vector ``a`` along ``axis``: the constant parts of :func:`_rotation`."""
     a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
-    k = _hat(a)
-    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
+    return _hat(a), _hat(a) @ _hat(a), a
+
+
+def _rotation(terms: tuple[np.ndarray, ...], angle) -> np.ndarray:
+    return np.eye(3) + np.sin(angle) * terms[0] + (1 - np.cos(angle)) * terms[1]
+
+
+_NODE_AXES = tuple(_axis_terms(axis) for axis in ((1, 0, 0), (0, 1, 0), (0, 0, 1)))   # a node's rotations x, y, z
+_NODE_HATS = (_hat([1.0, 0, 0]), _hat([0, 1.0, 0]), _hat([0, 0, 1.0]))
 
 
 @dataclass
@@ -165,6 +173,7 @@ class SpatialFEChain:
             count += k
         self.n_u = count
         self.n = self.n_joints + count
+        self._joint_axes = {k: _axis_terms(s.axis) for k, s in enumerate(self.segments) if s.axis is not None}
         self._elements()
 
     # -------------------------------------------------------------------------------- the frame
@@ -337,9 +346,9 @@ class SpatialFEChain:
         if len(d) < 6 or d[3] is None:
             return rho, np.eye(3), np.zeros((3, self.n_u)), Smap
         a, b, c = u[d[3]], u[d[4]], u[d[5]]
-        Rx, Ry, Rz = _axis_rotation((1, 0, 0), a), _axis_rotation((0, 1, 0), b), _axis_rotation((0, 0, 1), c)
+        Rx, Ry, Rz = (_rotation(terms, angle) for terms, angle in zip(_NODE_AXES, (a, b, c)))
         E = Rz @ Ry @ Rx
-        dE = [Rz @ Ry @ (_hat([1.0, 0, 0]) @ Rx), Rz @ (_hat([0, 1.0, 0]) @ Ry) @ Rx, (_hat([0, 0, 1.0]) @ Rz) @ Ry @ Rx]
+        dE = [Rz @ Ry @ (_NODE_HATS[0] @ Rx), Rz @ (_NODE_HATS[1] @ Ry) @ Rx, (_NODE_HATS[2] @ Rz) @ Ry @ Rx]
         W = np.zeros((3, self.n_u), dtype=np.result_type(u, float))
         for k in range(3):
             w = dE[k] @ E.T
@@ -371,10 +380,9 @@ class SpatialFEChain:
                 arm = R @ np.asarray(point, float)
                 Rp, op, Jvp, Jwp = R, o + arm, Jv - _hat(arm) @ Jw, Jw
             if isinstance(seg, Link) or seg.axis is not None:
-                a = np.asarray(seg.axis, float)
-                R = Rp @ _axis_rotation(a, q[joint])
+                R = Rp @ _rotation(self._joint_axes[k], q[joint])
                 Jw = Jwp.copy()
-                Jw[:, joint] = Jw[:, joint] + Rp @ (a / np.linalg.norm(a))
+                Jw[:, joint] = Jw[:, joint] + Rp @ self._joint_axes[k][2]
                 joint += 1
             else:
                 R, Jw = Rp, Jwp

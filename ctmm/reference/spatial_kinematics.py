@@ -204,13 +204,18 @@ def kinematics(tree, q: np.ndarray, v: np.ndarray) -> Kinematics:
         w_rel, d_rel = s_w @ vj, s_v @ vj
         lever = origin[i] - op
         omega[i] = wp + w_rel
-        velocity[i] = vp + cross(wp, lever) + d_rel
-        alpha[i] = ap + rot[i] @ bias_w + cross(wp, w_rel)
-        accel[i] = (acp + cross(ap, lever) + cross(wp, cross(wp, lever))
-                    + 2.0 * cross(wp, d_rel) + r_joint @ bias_d)
         if p >= 0:
+            transport = cross(wp, lever)
+            velocity[i] = vp + transport + d_rel
+            alpha[i] = ap + rot[i] @ bias_w + cross(wp, w_rel)
+            accel[i] = (acp + cross(ap, lever) + cross(wp, transport)
+                        + 2.0 * cross(wp, d_rel) + r_joint @ bias_d)
             jw[i] = jw[p]
             jo[i] = jo[p] + cross(jw[p].T, lever).T
+        else:       # at rest: the cross products with the ground's zero rates are zeros, 0 + (+-0) = 0 = vp
+            velocity[i] = vp + d_rel
+            alpha[i] = ap + rot[i] @ bias_w
+            accel[i] = acp + r_joint @ bias_d
         jw[i][:, vs: vs + s_w.shape[1]] += s_w
         jo[i][:, vs: vs + s_w.shape[1]] += s_v
     arm = np.einsum("bij,bj->bi", rot, np.array([b.com for b in tree.bodies]))
