@@ -280,7 +280,7 @@ class ChainPlant:
 
         def check(t: float, y: np.ndarray, step: float | None, method: str) -> None:
             state = y[:size]
-            if not np.all(np.isfinite(state)):
+            if not np.isfinite(state).all():
                 raise SimulationError(f"chain {chain.name!r}: non-finite state at t = {t:.6g} s ({method})",
                                       time=float(t), element=chain.name)
             guard.check(t, dynamics.point_positions(t, state)[watched])

@@ -354,8 +354,9 @@ class _ClosedLoop:
         names, sensors = self.delayed_names, self.delayed_sensors
         values = self.point_values(t, y)[self.delayed_in_point] if self.share_points else \
             np.asarray(self.sensor_values(names, sensors, t, y), float)
-        speed = max(float(np.max(np.abs(v), initial=0.0)) / max(1.0, float(np.max(np.abs(q), initial=0.0))),
-                    float(np.max(np.abs(a), initial=0.0)) / max(1.0, float(np.max(np.abs(v), initial=0.0))))
+        largest_v = float(np.abs(v).max(initial=0.0))
+        speed = max(largest_v / max(1.0, float(np.abs(q).max(initial=0.0))),
+                    float(np.abs(a).max(initial=0.0)) / max(1.0, largest_v))
         h = 1e-3 / max(speed, 1.0)      # the state moves by ~1e-3 of its size: truncation ~1e-12
 
         def along(s: float) -> np.ndarray:
@@ -436,7 +437,7 @@ class _ClosedLoop:
 
 def _check_state(system: _ClosedLoop, guard, t: float, y: np.ndarray, step: float | None, method: str) -> None:
     guard(t, y, step, method)
-    if not np.all(np.isfinite(y[system.base:])):
+    if system.size > system.base and not np.isfinite(y[system.base:]).all():
         name = next(lp.name for lp in system.loops if not np.all(np.isfinite(y[lp.states])))
         raise SimulationError(f"non-finite controller state of loop {name!r} at t = {t:.6g} s", time=float(t),
                               element=name)
