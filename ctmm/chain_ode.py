@@ -263,26 +263,33 @@ class ChainDynamics:
         self.condense(t, x, v, inputs, wall)
         return x, v, inputs, wall
 
-    def nodes(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def nodes(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None,
+              condensed: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Node positions, velocities and accelerations (``NaN`` at massless nodes) from the state ``y``
-        (``extra``: actuator values ``{position: {input: value}}`` [N] on top of the chain's own loads)."""
+        (``extra``: actuator values ``{position: {input: value}}`` [N] on top of the chain's own loads;
+        ``condensed``: the node positions and velocities of :meth:`kinematics` at ``(t, y)`` without ``extra``,
+        where no actuator of ``extra`` touches a massless node, whose balance then does not read them)."""
         q = self.index_Q
-        x, v, inputs, wall = self.kinematics(t, y, extra)
+        if condensed is None:
+            x, v, inputs, wall = self.kinematics(t, y, extra)
+        else:
+            x, v = condensed[0].copy(), condensed[1].copy()
+            inputs, wall = self.inputs(t, extra), self.wall_motion(t)
         a = self.forces(x[None], v[None], t, inputs, wall)[0]
         a[q] = np.nan
         if self._start_motion is not None:
             a[self.held] = self._start_motion(t)[2]
         return x, v, a
 
-    def rate(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None) -> np.ndarray:
-        """``y' = [v_I, a_I, z_r']`` at ``t`` [s] (``extra`` as in :meth:`nodes`): the certified affine form
-        (:mod:`ctmm.chain_affine`, one sparse mat-vec) where the chain has one, else :meth:`swept_rate`."""
+    def rate(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None,
+             condensed: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """``y' = [v_I, a_I, z_r']`` at ``t`` [s] (``extra`` and ``condensed`` as in :meth:`nodes`): the certified
+        affine form (:mod:`ctmm.chain_affine`, one sparse mat-vec) where the chain has one, else :meth:`swept_rate`."""
         linear = self.linear
         if linear is not None:
             m = self.index_I.size
             return np.concatenate([y[m:2 * m], linear.accelerations(t, y[:m], y[m:2 * m], extra)])
-        return self.swept_rate(t, y, extra)
+        return self.swept_rate(t, y, extra, condensed)
 
     @property
     def linear(self) -> LinearRates | None:
@@ -296,11 +303,11 @@ class ChainDynamics:
         start = self._start_motion(t) if self._start_motion is not None else (0.0, 0.0, 0.0)
         return (*start, *self.wall_motion(t))
 
-    def swept_rate(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None
-                   ) -> np.ndarray:
+    def swept_rate(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None,
+                   condensed: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """:meth:`rate` by one articulated sweep of the element terms (the reference of the affine form)."""
         I, q = self.index_I, self.index_Q
-        x, v, a = self.nodes(t, y, extra)
+        x, v, a = self.nodes(t, y, extra, condensed)
         parts = [v[I], a[I]]
         if self.n_r:
             parts.append(self.P_r.T @ v[q])

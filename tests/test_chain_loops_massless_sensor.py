@@ -95,3 +95,34 @@ def test_the_dt_tmm_path_puts_the_actuator_into_the_node_balance():
     np.testing.assert_allclose(result["l.y"], result["k1.x"], rtol=0, atol=0)
     np.testing.assert_allclose(result["k1.x"], exact[0], rtol=0, atol=5e-7)
     np.testing.assert_allclose(result["m.x"], exact[1], rtol=0, atol=5e-7)
+
+
+@pytest.mark.parametrize("second", ["damper", "spring"])
+def test_the_rate_reuses_the_sensors_condensation_and_is_the_hand_ode(second, monkeypatch):
+    """The driver reads the sensors, then the rate at the same ``(t, q, v)``: the rate reuses the sensors'
+    condensation of the massless node (no second balance solve) and is the hand ODE with the actuator force."""
+    from ctmm.chain_ode import ChainDynamics
+    from ctmm.control.chain_plant import ChainPlant
+
+    plant = ChainPlant(chain(second))
+    ports = plant.ports
+    sensors = ports.resolve([ports.check_sensor("k1.x"), ports.check_sensor("k1.v")])
+    inputs = ports.inputs({ports.check_actuator("m"): 0.7})
+    z, x, v, t = 0.01, X0, V0, 0.3
+    q, rates = np.array([x]), np.array([v, z]) if second == "damper" else np.array([v])
+    solves = []
+    condense = ChainDynamics.condense
+    monkeypatch.setattr(ChainDynamics, "condense", lambda self, *args: solves.append(1) or condense(self, *args))
+    sensed = ports.values(sensors, q, rates, t)
+    assert len(solves) == 1
+    acceleration = plant.accelerations(q, rates, t, inputs)
+    assert len(solves) == 1                             # the sensors' condensation reused
+    position, velocity = node_balance(second, np.array(x), np.array(v), np.array(z))
+    np.testing.assert_allclose(sensed, [position, velocity], rtol=0, atol=1e-15)
+    if second == "damper":
+        expected = [(-K1 * z + 0.7) / M, velocity]      # the mass, then the node's first-order part z' = z_dot
+    else:
+        expected = [(-K2 * (x - position) + 0.7) / M]
+    np.testing.assert_allclose(acceleration, expected, rtol=1e-14, atol=1e-15)
+    plant.accelerations(q + 1e-3, rates, t, inputs)    # another state: its own balance
+    assert len(solves) == 2

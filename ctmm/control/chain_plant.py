@@ -93,6 +93,8 @@ class ChainPorts(NamedPorts):
         self._massless_points = {p for p, k in enumerate(dynamics.node_of_point) if k >= 0 and dynamics.massless[k]}
         self._sensed_connectors: set[int] = set()
         self._driven_connectors: set[int] = set()
+        # the last massless-node condensation of the sensors, (t, y, x, v): the rate at the same (t, y) reuses it
+        self._condensed: tuple[float, np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def check_sensor(self, name: str, what: str = "sensor") -> str:
         """``name`` if it is a sensor of this path, else a :class:`ModelError` naming why."""
@@ -172,6 +174,7 @@ class ChainPorts(NamedPorts):
         dynamics = self.dynamics
         if dynamics.index_Q.size:
             x, v, _, wall = dynamics.kinematics(t, y)
+            self._condensed = (t, y.copy(), x, v)         # not changed below (indexed copies)
         else:                           # no massless node to condense: the states and the held motion only
             m, n = dynamics.index_I.size, dynamics.tree.n_nodes
             x, v = np.zeros(n), np.zeros(n)
@@ -183,6 +186,14 @@ class ChainPorts(NamedPorts):
         on_wall = k < 0
         xp[on_wall], vp[on_wall] = wall[0], wall[1]
         return xp, vp
+
+    def condensed_at(self, t: float, y: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """The node positions and velocities [m, m/s] of the massless-node condensation :meth:`point_kinematics` made
+        at time ``t`` [s] and chain state ``y`` (the same numbers), else ``None``."""
+        last = self._condensed
+        if last is None or last[0] != t or not np.array_equal(last[1], y):
+            return None
+        return last[2], last[3]
 
     def _law_force(self, position: int, xp: np.ndarray, vp: np.ndarray) -> float:
         c = self.model.elements[position].lumped_coefficients()
@@ -234,8 +245,11 @@ class ChainPlant:
         return v[:self.n_positions]
 
     def accelerations(self, q: np.ndarray, v: np.ndarray, t: float, inputs: Any) -> np.ndarray:
-        """``[a_I, z_r']`` at ``t`` [s] with the actuator ``inputs`` (:meth:`ChainPorts.inputs`)."""
-        return self.dynamics.rate(t, np.concatenate([q, v]), inputs)[self.n_positions:]
+        """``[a_I, z_r']`` at ``t`` [s] with the actuator ``inputs`` (:meth:`ChainPorts.inputs`); the massless nodes
+        condensed by the sensors at the same ``(t, q, v)`` are reused (no actuator touches them, so their balance
+        does not read the ``inputs``: :meth:`ChainPorts.check_actuator`)."""
+        y = np.concatenate([q, v])
+        return self.dynamics.rate(t, y, inputs, self.ports.condensed_at(t, y))[self.n_positions:]
 
     def signals(self, t: np.ndarray, q: np.ndarray, v: np.ndarray, outputs: Sequence[str],
                 inputs: Sequence[Mapping[int, Mapping[str, float]]] | None = None) -> tuple[dict, dict]:
@@ -266,7 +280,7 @@ class ChainPlant:
 
         def check(t: float, y: np.ndarray, step: float | None, method: str) -> None:
             state = y[:size]
-            if not np.all(np.isfinite(state)):
+            if not np.isfinite(state).all():
                 raise SimulationError(f"chain {chain.name!r}: non-finite state at t = {t:.6g} s ({method})",
                                       time=float(t), element=chain.name)
             guard.check(t, dynamics.point_positions(t, state)[watched])

@@ -199,9 +199,18 @@ class _ClosedLoop:
         self.delayed_sensors = ports.resolve(self.delayed_names)
         self.controller_sensors = [ports.resolve(list(c.inputs)) for c in self.controllers]
         self.delayed_index = {name: k for k, name in enumerate(self.delayed_names)}
+        # every sensor read at a step's end (the loops' and the delayed ones), evaluated once there: all_names first,
+        # so a loop's rows into the all-sensor vector index it too
+        self.point_names = list(dict.fromkeys(self.all_names + self.delayed_names))
+        self.point_sensors = ports.resolve(self.point_names)
+        self.delayed_in_point = np.array([self.point_names.index(name) for name in self.delayed_names], dtype=np.intp)
+        self._point: tuple[float, np.ndarray, np.ndarray] | None = None
         self.input_dependent = frozenset(getattr(ports, "input_dependent", ())) & set(
             self.all_names + [name for c in self.controllers for name in c.inputs])
         self._refuse_input_dependent(loops)
+        # a step end's sensors are shared by the loops, the delay history and the stored row where they depend on the
+        # state alone (a cut force depends on the actuators, which the held outputs and the loops change)
+        self.share_points = bool(self.delayed_names) and not self.input_dependent
         self.max_delay = max([lp.delay for lp in loops] + self.controller_delays + [0.0])
         self.history_step = history_step
         self.history: DelayHistory | None = None
@@ -259,12 +268,17 @@ class _ClosedLoop:
         """``(y now, e, u)`` of every loop at state ``y`` and time ``t``, with the error
         ``e = y(t - tau) - r(t - tau)`` and ``u = -C e`` (``y now`` is NaN for a delayed loop
         unless ``record``: the integrator needs only ``u``)."""
-        names, sensors = (self.all_names, self.all_sensors) if record else (self.now_names, self.now_sensors)
-        now = self.sensor_values(names, sensors, t, y) if names else np.zeros(0)
+        point = self._point
+        shared = self.share_points and (record or (point is not None and point[0] == t and point[1] is y))
+        if shared:                      # a step's end: the sensors of every loop, evaluated once there
+            now = self.point_values(t, y)
+        else:
+            names, sensors = (self.all_names, self.all_sensors) if record else (self.now_names, self.now_sensors)
+            now = self.sensor_values(names, sensors, t, y) if names else np.zeros(0)
         past_by_delay: dict[float, np.ndarray] = {}
         out = []
         for lp, delay, now_rows, all_rows, past_rows, ref, stateful, saturates in self._plans:
-            rows = all_rows if record else now_rows
+            rows = all_rows if record or (shared and now_rows is not None) else now_rows
             y_now = float(lp.weights @ now[rows]) if rows is not None else math.nan
             if past_rows is not None:
                 past = past_by_delay.get(delay)
@@ -279,6 +293,16 @@ class _ClosedLoop:
         if record and self.use_cache:
             self._recorded = (t, y, out)
         return out
+
+    def point_values(self, t: float, y: np.ndarray) -> np.ndarray:
+        """The sensors of every loop and the delayed ones (:attr:`point_names`) at a step's end ``(t, y)``, evaluated
+        once there (kept for the same ``t`` and state object: the rate, the delay history and the stored row read
+        them; the state is not changed in place after the step's checks and projection)."""
+        point = self._point
+        if point is None or point[0] != t or point[1] is not y:
+            point = self._point = (t, y, np.asarray(self.sensor_values(self.point_names, self.point_sensors, t, y),
+                                                    float))
+        return point[2]
 
     def actuator_values(self, t: float, y: np.ndarray, loop_values) -> dict[str, float]:
         """Total value of every driven actuator: inputs + loops + held controller outputs."""
@@ -328,9 +352,11 @@ class _ClosedLoop:
         q, v = y[:self.n], y[self.n:self.base]
         qdot, a = rate[:self.n], rate[self.n:self.base]
         names, sensors = self.delayed_names, self.delayed_sensors
-        values = np.asarray(self.sensor_values(names, sensors, t, y), float)
-        speed = max(float(np.max(np.abs(v), initial=0.0)) / max(1.0, float(np.max(np.abs(q), initial=0.0))),
-                    float(np.max(np.abs(a), initial=0.0)) / max(1.0, float(np.max(np.abs(v), initial=0.0))))
+        values = self.point_values(t, y)[self.delayed_in_point] if self.share_points else \
+            np.asarray(self.sensor_values(names, sensors, t, y), float)
+        largest_v = float(np.abs(v).max(initial=0.0))
+        speed = max(largest_v / max(1.0, float(np.abs(q).max(initial=0.0))),
+                    float(np.abs(a).max(initial=0.0)) / max(1.0, largest_v))
         h = 1e-3 / max(speed, 1.0)      # the state moves by ~1e-3 of its size: truncation ~1e-12
 
         def along(s: float) -> np.ndarray:
@@ -378,6 +404,8 @@ class _ClosedLoop:
         if self.history is None:
             return
         self._recorded = None           # the history changes: a stored row's delayed signals are not reused
+        if self.share_points:           # the step end's sensors, for the rate below, the history and the stored row
+            self.point_values(t, y)
         values, derivative = self._delayed_now(t, y, self.rate(t, y))
         if t > self.history.last_time:
             self.history.append(t, values, derivative)
@@ -409,7 +437,7 @@ class _ClosedLoop:
 
 def _check_state(system: _ClosedLoop, guard, t: float, y: np.ndarray, step: float | None, method: str) -> None:
     guard(t, y, step, method)
-    if not np.all(np.isfinite(y[system.base:])):
+    if system.size > system.base and not np.isfinite(y[system.base:]).all():
         name = next(lp.name for lp in system.loops if not np.all(np.isfinite(y[lp.states])))
         raise SimulationError(f"non-finite controller state of loop {name!r} at t = {t:.6g} s", time=float(t),
                               element=name)

@@ -266,7 +266,7 @@ def run_fixed_step(rate: Callable[[float, np.ndarray], np.ndarray], y0: np.ndarr
 
 def guard_rates(model: PlanarModel, t: float, qdot: np.ndarray) -> None:
     """Raise :class:`SimulationError` naming the first non-finite rate ``qdot`` at ``t`` [s]."""
-    if not np.all(np.isfinite(qdot)):
+    if not np.isfinite(qdot).all():
         name = model.coordinates[int(np.flatnonzero(~np.isfinite(qdot))[0])]
         raise SimulationError(f"non-finite rate at t = {t:.6g} s in {name + '_dot'!r}", time=float(t),
                               element=name)
