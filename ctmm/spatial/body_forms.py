@@ -293,7 +293,13 @@ def child_motion(ops: Ops, joint_rotation: np.ndarray, rel: JointMotion, parent_
         The inboard point [m] and its velocity [m/s] (``None``: at rest).
     parent_omega : ops (3, 1) or None
         The parent's angular velocity [rad/s] (``None``: not turning).
+
+    On numpy ``joint_rotation`` may also be the constant ``(1, 3, 3)`` itself (a scene's, formed once) and the
+    statements run as :func:`_numpy_child_motion`.
     """
+    if ops.name == "numpy":
+        R_J = joint_rotation if np.ndim(joint_rotation) == 3 else constant(ops, joint_rotation)
+        return _numpy_child_motion(R_J, rel, parent_rotation, point, point_velocity, parent_omega)
     R_J = constant(ops, joint_rotation)
     R_PJ = R_J if parent_rotation is None else ops.matmul(parent_rotation, R_J)
     R_c = ops.matmul(R_PJ, rel.rotation)
@@ -318,6 +324,47 @@ def child_motion(ops: Ops, joint_rotation: np.ndarray, rel: JointMotion, parent_
     if c_lin is not None or c_ang is not None:
         c = ops.block([[c_lin if c_lin is not None else ops.zeros(3, 1)],
                        [c_ang if c_ang is not None else ops.zeros(3, 1)]])
+    joint = JointTerms(S=S, c=c, tau=rel.tau, tau_q=rel.tau_q, tau_v=rel.tau_v, prescribed=rel.prescribed)
+    return ChildMotion(state, joint, offset, w_c)
+
+
+def _numpy_child_motion(R_J: np.ndarray, rel: JointMotion, parent_rotation: Any, point: Any, point_velocity: Any,
+                        parent_omega: Any) -> ChildMotion:
+    """:func:`child_motion` on numpy batches: the same operations on the same operands, the joint frame a constant
+    ``(1, 3, 3)``, ``diag(R_PJ, R_PJ)`` and the bias ``c`` filled into one allocation each (their
+    :func:`~ctmm.spatial.frames.block_diagonal` and block assembly without the generic checks)."""
+    R_PJ = R_J if parent_rotation is None else np.matmul(parent_rotation, R_J)
+    R_c = np.matmul(R_PJ, rel.rotation)
+    offset = None if rel.translation is None else np.matmul(R_PJ, rel.translation)
+    o_c = point if offset is None else point + offset
+    w_rel = None if rel.angular is None else np.matmul(R_PJ, rel.angular)
+    u_rel = None if rel.linear is None else np.matmul(R_PJ, rel.linear)
+    w_c = _add(parent_omega, w_rel)
+    v_C = _add(point_velocity, u_rel)
+    v_o = v_C if (offset is None or w_c is None) else _add(v_C, cross(NUMPY, w_c, offset))
+    state = BodyState(R_c, o_c, v_o if v_o is not None else np.zeros((1, 3, 1)),
+                      w_c if w_c is not None else np.zeros((1, 3, 1)), point)
+    S = None
+    if rel.S is not None:
+        frames = np.zeros(R_PJ.shape[:-2] + (6, 6), dtype=R_PJ.dtype)
+        frames[..., :3, :3] = R_PJ
+        frames[..., 3:, 3:] = R_PJ
+        S = np.matmul(frames, rel.S)
+    c_lin = None if rel.bias is None else np.matmul(R_PJ, rel.bias[..., 0:3, 0:1])
+    c_ang = None if rel.bias is None else np.matmul(R_PJ, rel.bias[..., 3:6, 0:1])
+    if parent_omega is not None:
+        if u_rel is not None:
+            c_lin = _add(c_lin, cross(NUMPY, parent_omega, u_rel) * 2.0)
+        if w_rel is not None:
+            c_ang = _add(c_ang, cross(NUMPY, parent_omega, w_rel))
+    c = None
+    if c_lin is not None or c_ang is not None:
+        parts = [part for part in (c_lin, c_ang) if part is not None]
+        c = np.zeros(batch_shape(*parts) + (6, 1), dtype=np.result_type(*parts, float))
+        if c_lin is not None:
+            c[..., :3, :] = c_lin
+        if c_ang is not None:
+            c[..., 3:, :] = c_ang
     joint = JointTerms(S=S, c=c, tau=rel.tau, tau_q=rel.tau_q, tau_v=rel.tau_v, prescribed=rel.prescribed)
     return ChildMotion(state, joint, offset, w_c)
 
@@ -350,6 +397,12 @@ class SpatialScene:
         self._outboard = [{name: p for name, p in body.points.items() if name in names}
                           for body, names in zip(model.bodies, used)]
         self._families: dict = {}           # members -> their stacked numbers (:meth:`_rigid_family_terms`)
+        # numpy constants of the joints, formed once: each joint frame (1, 3, 3) and its point on the parent (1, 3, 1)
+        self._joint_frames = [constant(NUMPY, joint.rotation) for joint in model.joints]
+        self._joint_points = [constant(NUMPY, joint.point if par < 0 else model.bodies[par].points[joint.point])
+                              for joint, par in zip(model.joints, model.parent)]       # at the ground: its place
+        for value in self._joint_frames + self._joint_points:      # shared by every call: read-only
+            value.flags.writeable = False
         kinds: dict = {}                    # revolute and prismatic joints (not driven, no nonlinear law) by kind
         for j, joint in enumerate(model.joints):
             if joint.kind in ("revolute", "prismatic") and not joint.driven and joint.law is None:
@@ -395,7 +448,8 @@ class SpatialScene:
         point_frames: list[dict] = []
         bodies, joints, pending = [], [], []
         motions: dict = {}                          # numpy: the joint families' motions, each family at once
-        if ops.name == "numpy" and self._joint_families:
+        numpy = ops.name == "numpy"
+        if numpy and self._joint_families:
             q_rows, v_rows = (values if np.ndim(values) == 2 else np.asarray(values)[None] for values in (q, v))
             for members, family in self._joint_families:
                 motions.update(zip(members, family.motions(q_rows, v_rows, inputs)))
@@ -415,20 +469,21 @@ class SpatialScene:
             par = model.parent[j]
             if par < 0:
                 R_p, o_p, v_p, w_p = None, None, None, None
-                P = constant(ops, joint.point)
+                P = self._joint_points[j] if numpy else constant(ops, joint.point)
                 v_P = None
             else:
                 ps = states[par]
                 R_p, o_p, v_p, w_p = ps.rotation, ps.origin, ps.velocity, ps.omega
                 frame = point_frames[par].get(joint.point)
                 if frame is None:
-                    arm = ops.matmul(R_p, constant(ops, model.bodies[par].points[joint.point]))
+                    arm = ops.matmul(R_p, self._joint_points[j] if numpy else
+                                     constant(ops, model.bodies[par].points[joint.point]))
                     P = o_p + arm
                     v_P = v_p + cross(ops, w_p, arm)
                 else:                                   # a beam point: its frame follows the deformation
                     P, v_P = o_p + frame.arm, v_p + frame.velocity
                     R_p, w_p = frame.rotation, frame.omega
-            motion = child_motion(ops, joint.rotation, rel, R_p, P, v_P, w_p)
+            motion = child_motion(ops, self._joint_frames[j] if numpy else joint.rotation, rel, R_p, P, v_P, w_p)
             states.append(motion.state)
             joints.append(motion.joint)
             R_c, offset, w_c = motion.state.rotation, motion.offset, motion.omega
