@@ -109,10 +109,18 @@ def scene_solution(scene: SpatialScene, q: Any, v: Any, t: float, inputs: Mappin
                               "it carries has no inertia in some free direction (to round-off)", time=t,
                               element=joint.name) from exc
     batch = np.asarray(solution.force[0]).shape[0]
-    parts = [_batched(a, batch) for a in scene.velocity_rates(solution)]
-    rates = np.concatenate(parts, axis=1) if parts else np.zeros((batch, 0))
-    forces = np.stack([_batched(f, batch) for f in solution.force], axis=1)
-    points = np.stack([_batched(np.asarray(x)[:, :6], batch) for x in solution.x], axis=1)
+    pieces = scene.velocity_rates(solution)
+    if all(type(a) is np.ndarray and a.ndim == 3 and a.shape[0] == batch for a in (*pieces, *solution.force,
+                                                                                  *solution.x)):
+        # every column of the batch's size (the usual case): one copy each, the columns' entries as they are
+        rates = np.concatenate(pieces, axis=1)[:, :, 0] if pieces else np.zeros((batch, 0))
+        forces = np.stack(solution.force, axis=1)[..., 0]
+        points = np.stack([x[:, :6] for x in solution.x], axis=1)[..., 0]
+    else:
+        parts = [_batched(a, batch) for a in pieces]
+        rates = np.concatenate(parts, axis=1) if parts else np.zeros((batch, 0))
+        forces = np.stack([_batched(f, batch) for f in solution.force], axis=1)
+        points = np.stack([_batched(np.asarray(x)[:, :6], batch) for x in solution.x], axis=1)
     if not (np.all(np.isfinite(rates)) and np.all(np.isfinite(forces))):
         raise SimulationError(f"{model.name}: the articulated sweep gave non-finite accelerations at t = {t} s "
                               "(a singular pivot: a joint whose free directions carry no inertia)", time=t,
