@@ -59,9 +59,17 @@ class SingularPivotError(np.linalg.LinAlgError):
 def _solve(ops: Ops, a: Any, b: Any, body: int, what: str) -> Any:
     """``ops.solve(a, b)``; numpy's ``LinAlgError`` becomes :class:`SingularPivotError` naming the body."""
     try:
-        return ops.solve(a, b)
+        return _one_solve(ops, a, b)
     except np.linalg.LinAlgError as exc:
         raise SingularPivotError(f"singular {what} of body {body}: {exc}", body) from exc
+
+
+def _one_solve(ops: Ops, a: Any, b: Any) -> Any:
+    """``ops.solve(a, b)``; on numpy one system ``(1, k, k)``, ``(1, k, m)`` (the single-state sweeps) is solved
+    as the 2-D system ``a[0]``, ``b[0]`` (the same LAPACK ``gesv`` without the batched set-up, :class:`NumpyOps`)."""
+    if type(a) is np.ndarray and type(b) is np.ndarray and a.ndim == 3 == b.ndim and a.shape[0] == 1 == b.shape[0]:
+        return ops.solve(a[0], b[0])[None]
+    return ops.solve(a, b)
 
 
 def _product(ops: Ops, a: Any, b: Any) -> Any:
@@ -356,7 +364,7 @@ def articulated_inward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints
                 p_hat = p + PS * (rhs / Dj)
             else:
                 P_hat = P - ops.matmul(PS, _solve(ops, Dj, StP, j, "joint pivot"))
-                p_hat = p + ops.matmul(PS, ops.solve(Dj, rhs))
+                p_hat = p + ops.matmul(PS, _one_solve(ops, Dj, rhs))
         e = tree.point[j]
         parent = bodies[par]
         RF = parent.RF[e]

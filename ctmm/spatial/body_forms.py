@@ -13,7 +13,6 @@ translation has carried to ``P``), so that ``A_child = A_parent(P) + S a_rel + c
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 from functools import partial
 from typing import Any, Mapping, Sequence
 
@@ -23,8 +22,9 @@ from ..articulated import Articulated, Tree, articulated_sweep
 from ..errors import ModelError
 from ..ops import NUMPY, Ops, batch_column, batch_scalars, batch_shape
 from ..protocol import BodyTerms, JointTerms
-from .frames import block_diagonal, constant, cross, skew
-from .joint_kinematics import AxisJointFamily, JointMotion, joint_motion
+from .body_motion import BodyState, ChildMotion, child_motion
+from .frames import constant, cross, skew
+from .joint_kinematics import AxisJointFamily, joint_motion
 from .beam_terms import spatial_beam_terms
 from .model import SpatialModel, input_values
 from ..signals import signal_parameters, symbolic_signal
@@ -227,101 +227,6 @@ _EYE3 = np.eye(3)
 _DIAGONAL6 = np.arange(6)
 
 
-@dataclass(frozen=True)
-class BodyState:
-    """Pose and velocity of one body (ops values, world axes).
-
-    Attributes
-    ----------
-    rotation : (3, 3)
-        Body axes to world axes.
-    origin : (3, 1)
-        Body origin [m].
-    velocity : (3, 1)
-        Velocity of the body origin [m/s].
-    omega : (3, 1)
-        Angular velocity [rad/s].
-    inboard : (3, 1)
-        The inboard point ``P`` [m].
-    """
-
-    rotation: Any
-    origin: Any
-    velocity: Any
-    omega: Any
-    inboard: Any
-
-
-@dataclass(frozen=True)
-class ChildMotion:
-    """The pose, velocity and world-axes joint terms of one body (:func:`child_motion`).
-
-    Attributes
-    ----------
-    state : BodyState
-        The body's pose and velocity (zero columns where the motion has none).
-    joint : JointTerms
-        Its inboard joint's terms in world axes (``S``, bias ``c``, laws; ``prescribed`` of a driven joint).
-    offset : ops (3, 1) or None
-        The joint's translation in world axes [m] (``None``: none, the origin is the inboard point).
-    omega : ops (3, 1) or None
-        The body's angular velocity [rad/s] (``None``: the body does not turn, for the body terms).
-    """
-
-    state: BodyState
-    joint: JointTerms
-    offset: Any
-    omega: Any
-
-
-def child_motion(ops: Ops, joint_rotation: np.ndarray, rel: JointMotion, parent_rotation: Any, point: Any,
-                 point_velocity: Any, parent_omega: Any) -> ChildMotion:
-    """The body kinematics of the sweep for one body: its pose and velocity from the inboard point's and the
-    joint's relative motion, and the joint terms in world axes (the statements of :meth:`SpatialScene.terms`
-    per body, also the segment of :mod:`ctmm.compiled_spatial`'s folds).
-
-    Parameters
-    ----------
-    ops : Ops
-    joint_rotation : ndarray, shape (3, 3)
-        The joint frame in the parent's axes (``joint.rotation``).
-    rel : JointMotion
-        The joint's relative motion (:func:`joint_motion`).
-    parent_rotation : ops (3, 3) or None
-        The parent's axes (``None``: the ground).
-    point, point_velocity : ops (3, 1); point_velocity may be None
-        The inboard point [m] and its velocity [m/s] (``None``: at rest).
-    parent_omega : ops (3, 1) or None
-        The parent's angular velocity [rad/s] (``None``: not turning).
-    """
-    R_J = constant(ops, joint_rotation)
-    R_PJ = R_J if parent_rotation is None else ops.matmul(parent_rotation, R_J)
-    R_c = ops.matmul(R_PJ, rel.rotation)
-    offset = None if rel.translation is None else ops.matmul(R_PJ, rel.translation)
-    o_c = point if offset is None else point + offset
-    w_rel = None if rel.angular is None else ops.matmul(R_PJ, rel.angular)
-    u_rel = None if rel.linear is None else ops.matmul(R_PJ, rel.linear)
-    w_c = _add(parent_omega, w_rel)
-    v_C = _add(point_velocity, u_rel)
-    v_o = v_C if (offset is None or w_c is None) else _add(v_C, cross(ops, w_c, offset))
-    state = BodyState(R_c, o_c, v_o if v_o is not None else ops.zeros(3, 1), w_c if w_c is not None else ops.zeros(3, 1),
-                      point)
-    S = ops.matmul(block_diagonal(ops, R_PJ, R_PJ, 3, 3), rel.S) if rel.S is not None else None
-    c_lin = None if rel.bias is None else ops.matmul(R_PJ, ops.sub(rel.bias, slice(0, 3), slice(0, 1)))
-    c_ang = None if rel.bias is None else ops.matmul(R_PJ, ops.sub(rel.bias, slice(3, 6), slice(0, 1)))
-    if parent_omega is not None:
-        if u_rel is not None:
-            c_lin = _add(c_lin, cross(ops, parent_omega, u_rel) * 2.0)
-        if w_rel is not None:
-            c_ang = _add(c_ang, cross(ops, parent_omega, w_rel))
-    c = None
-    if c_lin is not None or c_ang is not None:
-        c = ops.block([[c_lin if c_lin is not None else ops.zeros(3, 1)],
-                       [c_ang if c_ang is not None else ops.zeros(3, 1)]])
-    joint = JointTerms(S=S, c=c, tau=rel.tau, tau_q=rel.tau_q, tau_v=rel.tau_v, prescribed=rel.prescribed)
-    return ChildMotion(state, joint, offset, w_c)
-
-
 def _scalars(ops: Ops, values: Any, count: int) -> list:
     if ops.name == "numpy":
         return batch_scalars(values) if count else []
@@ -350,6 +255,12 @@ class SpatialScene:
         self._outboard = [{name: p for name, p in body.points.items() if name in names}
                           for body, names in zip(model.bodies, used)]
         self._families: dict = {}           # members -> their stacked numbers (:meth:`_rigid_family_terms`)
+        # numpy constants of the joints, formed once: each joint frame (1, 3, 3) and its point on the parent (1, 3, 1)
+        self._joint_frames = [constant(NUMPY, joint.rotation) for joint in model.joints]
+        self._joint_points = [constant(NUMPY, joint.point if par < 0 else model.bodies[par].points[joint.point])
+                              for joint, par in zip(model.joints, model.parent)]       # at the ground: its place
+        for value in self._joint_frames + self._joint_points:      # shared by every call: read-only
+            value.flags.writeable = False
         kinds: dict = {}                    # revolute and prismatic joints (not driven, no nonlinear law) by kind
         for j, joint in enumerate(model.joints):
             if joint.kind in ("revolute", "prismatic") and not joint.driven and joint.law is None:
@@ -395,7 +306,8 @@ class SpatialScene:
         point_frames: list[dict] = []
         bodies, joints, pending = [], [], []
         motions: dict = {}                          # numpy: the joint families' motions, each family at once
-        if ops.name == "numpy" and self._joint_families:
+        numpy = ops.name == "numpy"
+        if numpy and self._joint_families:
             q_rows, v_rows = (values if np.ndim(values) == 2 else np.asarray(values)[None] for values in (q, v))
             for members, family in self._joint_families:
                 motions.update(zip(members, family.motions(q_rows, v_rows, inputs)))
@@ -415,20 +327,21 @@ class SpatialScene:
             par = model.parent[j]
             if par < 0:
                 R_p, o_p, v_p, w_p = None, None, None, None
-                P = constant(ops, joint.point)
+                P = self._joint_points[j] if numpy else constant(ops, joint.point)
                 v_P = None
             else:
                 ps = states[par]
                 R_p, o_p, v_p, w_p = ps.rotation, ps.origin, ps.velocity, ps.omega
                 frame = point_frames[par].get(joint.point)
                 if frame is None:
-                    arm = ops.matmul(R_p, constant(ops, model.bodies[par].points[joint.point]))
+                    arm = ops.matmul(R_p, self._joint_points[j] if numpy else
+                                     constant(ops, model.bodies[par].points[joint.point]))
                     P = o_p + arm
                     v_P = v_p + cross(ops, w_p, arm)
                 else:                                   # a beam point: its frame follows the deformation
                     P, v_P = o_p + frame.arm, v_p + frame.velocity
                     R_p, w_p = frame.rotation, frame.omega
-            motion = child_motion(ops, joint.rotation, rel, R_p, P, v_P, w_p)
+            motion = child_motion(ops, self._joint_frames[j] if numpy else joint.rotation, rel, R_p, P, v_P, w_p)
             states.append(motion.state)
             joints.append(motion.joint)
             R_c, offset, w_c = motion.state.rotation, motion.offset, motion.omega
@@ -587,11 +500,3 @@ def _modal(ops: Ops, values: Any, rows: slice) -> Any:
 def _modal_rows(x: Any) -> Any:
     """``eta''``: the rows of a beam's ``x = [A_in (6) ; eta'']`` after the point state."""
     return x[..., 6:, :] if isinstance(x, np.ndarray) else x[6:, :]
-
-
-def _add(a: Any, b: Any) -> Any:
-    if a is None:
-        return b
-    if b is None:
-        return a
-    return a + b

@@ -15,7 +15,8 @@ from .beam_terms import beam_energy
 from .body_forms import SpatialScene
 from .model import SpatialModel
 
-__all__ = ["SpatialSolution", "solve", "scene_solution", "accelerations", "reactions", "state_rates", "scene_of", "energy"]
+__all__ = ["SpatialSolution", "solve", "solve_scene", "scene_solution", "accelerations", "reactions", "state_rates",
+           "scene_state_rates", "scene_of", "energy"]
 
 
 def _batched(column: Any, batch: int) -> np.ndarray:
@@ -80,11 +81,17 @@ def solve(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[s
         A singular articulated pivot (a joint whose free directions carry no inertia to round-off), naming the
         time and the joint (``element``).
     """
-    scene = scene_of(model)
+    return solve_scene(scene_of(model), q, v, t, inputs, wrenches)
+
+
+def solve_scene(scene: SpatialScene, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None,
+                wrenches: Mapping[int, Any] | None = None) -> SpatialSolution:
+    """:func:`solve` on a model's :class:`SpatialScene` (built once per model and run by the callers that hold
+    one, e.g. :class:`~ctmm.spatial.ports.SpatialPorts`); the same checks of ``t``, ``inputs`` and ``wrenches``."""
     t = validation.finite("t", t)
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{input name: number or f(t)}}, got {inputs!r:.80}")
-    return scene_solution(scene, q, v, t, inputs, _checked_wrenches(model, wrenches))
+    return scene_solution(scene, q, v, t, inputs, _checked_wrenches(scene.model, wrenches))
 
 
 def scene_solution(scene: SpatialScene, q: Any, v: Any, t: float, inputs: Mapping[str, Any] | None = None,
@@ -102,10 +109,18 @@ def scene_solution(scene: SpatialScene, q: Any, v: Any, t: float, inputs: Mappin
                               "it carries has no inertia in some free direction (to round-off)", time=t,
                               element=joint.name) from exc
     batch = np.asarray(solution.force[0]).shape[0]
-    parts = [_batched(a, batch) for a in scene.velocity_rates(solution)]
-    rates = np.concatenate(parts, axis=1) if parts else np.zeros((batch, 0))
-    forces = np.stack([_batched(f, batch) for f in solution.force], axis=1)
-    points = np.stack([_batched(np.asarray(x)[:, :6], batch) for x in solution.x], axis=1)
+    pieces = scene.velocity_rates(solution)
+    if all(type(a) is np.ndarray and a.ndim == 3 and a.shape[0] == batch for a in (*pieces, *solution.force,
+                                                                                  *solution.x)):
+        # every column of the batch's size (the usual case): one copy each, the columns' entries as they are
+        rates = np.concatenate(pieces, axis=1)[:, :, 0] if pieces else np.zeros((batch, 0))
+        forces = np.stack(solution.force, axis=1)[..., 0]
+        points = np.stack([x[:, :6] for x in solution.x], axis=1)[..., 0]
+    else:
+        parts = [_batched(a, batch) for a in pieces]
+        rates = np.concatenate(parts, axis=1) if parts else np.zeros((batch, 0))
+        forces = np.stack([_batched(f, batch) for f in solution.force], axis=1)
+        points = np.stack([_batched(np.asarray(x)[:, :6], batch) for x in solution.x], axis=1)
     if not (np.all(np.isfinite(rates)) and np.all(np.isfinite(forces))):
         raise SimulationError(f"{model.name}: the articulated sweep gave non-finite accelerations at t = {t} s "
                               "(a singular pivot: a joint whose free directions carry no inertia)", time=t,
@@ -160,7 +175,14 @@ def reactions(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mappi
 def state_rates(model: SpatialModel, x: np.ndarray, t: float, inputs: Mapping[str, Any] | None = None
                 ) -> np.ndarray:
     """``x_dot = [G(q) v ; v_dot]`` of the state ``x = [q ; v]`` (1-D or ``(B, nq + nv)``)."""
-    scene = scene_of(model)
+    return scene_state_rates(scene_of(model), x, t, inputs)
+
+
+def scene_state_rates(scene: SpatialScene, x: np.ndarray, t: float, inputs: Mapping[str, Any] | None = None
+                      ) -> np.ndarray:
+    """:func:`state_rates` on a model's :class:`SpatialScene` (one scene per run: its per-model numbers are
+    formed once, :func:`ctmm.spatial.integrate.simulate_spatial`)."""
+    model = scene.model
     size = model.n_positions + model.n_velocities
     if isinstance(x, (str, bytes, bool, Mapping)) or x is None or np.shape(x)[-1:] != (size,):
         raise ModelError(f"x must be the state [q ; v]: {size} numbers (or (B, {size})), got {x!r:.80}")
@@ -168,7 +190,7 @@ def state_rates(model: SpatialModel, x: np.ndarray, t: float, inputs: Mapping[st
     q, v = x[..., :model.n_positions], x[..., model.n_positions:]
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{input name: number or f(t)}}, got {inputs!r:.80}")
-    rates = scene_solution(scene, q, v, validation.finite("t", t), inputs).velocity_rates    # one scene per call
+    rates = scene_solution(scene, q, v, validation.finite("t", t), inputs).velocity_rates
     out = np.concatenate([model.position_rates(q if q.ndim == 2 else q[None], v if v.ndim == 2 else v[None]),
                           rates], axis=-1)
     return out[0] if x.ndim == 1 else out

@@ -19,7 +19,7 @@ from ..ode import rk4_step
 from ..results import SimulationResult
 from ..signal_results import SignalSystem, signal_result
 from .body_forms import SpatialScene
-from .dynamics import state_rates
+from .dynamics import scene_state_rates
 from .model import SpatialModel
 
 __all__ = ["simulate_spatial", "initial_state", "spatial_signals", "state_result", "divergence_check", "beam_deflection_weights",
@@ -262,10 +262,11 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
     x = initial_state(model, x0, v0)
     check = divergence_check(model, x, divergence_bound)
     count = [0]
+    scene = SpatialScene(model)                         # one scene for the run: its numbers formed once
 
     def rates(t: float, state: np.ndarray) -> np.ndarray:
         count[0] += 1
-        return state_rates(model, state, t, inputs)
+        return scene_state_rates(scene, state, t, inputs)
 
     start = clock.perf_counter()
     if method == "rk4":

@@ -67,7 +67,7 @@ from ..named_ports import NamedPorts
 from . import sensor_maps as maps
 from .beam_ports import beam_actuator_rows, beam_sensor_rows
 from .body_forms import SpatialScene
-from .dynamics import accelerations as sweep_accelerations, scene_solution
+from .dynamics import scene_solution, solve_scene
 from .model import SpatialModel
 from .sensor_maps import rotation_vector, xyz_angles
 
@@ -268,11 +268,12 @@ class SpatialPorts(NamedPorts):
     def accelerations(self, q: np.ndarray, v: np.ndarray, t: float, inputs: SpatialInputs | None) -> np.ndarray:
         """``v_dot`` (1-D) with the actuator ``inputs`` (:meth:`inputs`) applied."""
         if inputs is None:
-            return sweep_accelerations(self.model, q, v, t)
-        if not inputs.checked:                              # a hand-built SpatialInputs: its wrenches checked
-            return sweep_accelerations(self.model, q, v, t, inputs.joint, inputs.wrenches)
-        rates = scene_solution(self.scene, q, v, validation.finite("t", t), inputs.joint,
-                               inputs.wrenches).velocity_rates          # the wrenches built by inputs()
+            rates = solve_scene(self.scene, q, v, t).velocity_rates
+        elif not inputs.checked:                            # a hand-built SpatialInputs: its wrenches checked
+            rates = solve_scene(self.scene, q, v, t, inputs.joint, inputs.wrenches).velocity_rates
+        else:
+            rates = scene_solution(self.scene, q, v, validation.finite("t", t), inputs.joint,
+                                   inputs.wrenches).velocity_rates      # the wrenches built by inputs()
         return rates[0] if np.ndim(q) == 1 else rates
 
     # -- names ----------------------------------------------------------------------------------
