@@ -128,7 +128,7 @@ def test_indexed_class_sources_are_inspects_own(tmp_path: Path) -> None:
 module parsed by ``ast.parse`` or shared with pdoc's parse (as in the build)."""
     import inspect
 
-    import ctmm.spatial.body_forms
+    import ctmm.planar.elements
 
     builder = _builder()
     path = tmp_path / "ctmm_classes_sample.py"
@@ -141,8 +141,8 @@ module parsed by ``ast.parse`` or shared with pdoc's parse (as in the build)."""
         local = sample.factory()
         gone = type("Gone", (), {"__module__": sample.__name__})        # defined nowhere in the file
         classes = [sample.Decorated, sample.Decorated.Nested, sample.Point, local, local().method(), sample.Twice,
-                   sample.Alias, gone, *(value for value in vars(ctmm.spatial.body_forms).values()
-                                         if inspect.isclass(value) and value.__module__ == "ctmm.spatial.body_forms")]
+                   sample.Alias, gone, *(value for value in vars(ctmm.planar.elements).values()
+                                         if inspect.isclass(value) and value.__module__ == "ctmm.planar.elements")]
 
         def found(cls):
             try:
