@@ -34,8 +34,8 @@ from .errors import ModelError
 from .ops import Ops
 from .protocol import BodyTerms, JointTerms
 
-__all__ = ["Tree", "Articulated", "Inward", "SingularPivotError", "articulated_inward", "articulated_outward",
-           "articulated_sweep", "explicit_kappa", "frequency_kappa"]
+__all__ = ["Tree", "Articulated", "Inward", "SingularPivotError", "articulated_bias", "articulated_inward",
+           "articulated_outward", "articulated_sweep", "explicit_kappa", "frequency_kappa"]
 
 
 class SingularPivotError(np.linalg.LinAlgError):
@@ -449,3 +449,76 @@ def articulated_outward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joint
         for block in [b for b in D if b is not None] + [b for b in C if b is not None]:
             char = ops.det(block) if char is None else char * ops.det(block)
     return Articulated(x, force, relative, D, C, char, Phi)
+
+
+def articulated_bias(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints: Sequence[JointTerms],
+                     inward: Inward) -> Inward:
+    """The tip-to-base elimination of new bias terms about the articulated inertias of ``inward``.
+
+    For terms that differ from those ``inward`` was eliminated from only in the body biases ``h``, the
+    joint forces ``tau`` and prescribed accelerations (the same ``M``, ``S``, ``kappa``, ``Kin``, ``RF``):
+    :func:`articulated_inward`'s bias statements alone, on its stored ``Phi_j``, ``S^T Phi_j`` and ``D_j``;
+    the articulated inertias are not formed again.  :func:`articulated_outward` of the result is then the
+    sweep of the new terms (numbers equal to those of :func:`articulated_sweep` of them: the same
+    operations on the same numbers).  The response of a sweep to changed loads at a fixed iterate
+    (:func:`ctmm.spatial.implicit.input_response`) is its use.
+
+    Parameters
+    ----------
+    ops, tree, bodies, joints
+        As for :func:`articulated_sweep`: the new terms.  Their points' ``c`` must be ``None`` (zero): the
+        eliminated ``Phi_hat`` is not kept.
+    inward : Inward
+        :func:`articulated_inward` of terms with the same inertias, without joint coupling.
+
+    Returns
+    -------
+    Inward
+        ``inward`` with the new biases ``psi'_j``.
+
+    Raises
+    ------
+    ModelError
+        A body with internal coordinates (its modal bias is solved together with its inertia) or a point
+        with a velocity term ``c``.
+    """
+    nb = len(tree.parent)
+    d = tree.dimension
+    rd = slice(0, d)
+    h = [b.h for b in bodies]
+    psi = [None] * nb
+    for j in range(nb - 1, -1, -1):
+        if inward.modal[j] is not None:
+            raise ModelError(f"articulated_bias: body {j} has internal coordinates; sweep its terms with "
+                             "articulated_sweep")
+        P, p = inward.inertia[j], h[j]
+        joint = joints[j]
+        if joint.c is not None:
+            p = p + ops.matmul(P, joint.c)
+        psi[j] = p
+        par = tree.parent[j]
+        if par < 0:
+            continue
+        axis = joint.axis
+        if joint.prescribed is not None:
+            PS = ops.sub(P, rd, slice(axis, axis + 1)) if axis is not None else ops.matmul(P, joint.S)
+            p_hat = p + (PS * joint.prescribed if axis is not None else ops.matmul(PS, joint.prescribed))
+        elif joint.free == 0:
+            p_hat = p
+        elif axis is not None:
+            row = slice(axis, axis + 1)
+            Dj = inward.pivot[j]
+            rhs = ops.sub(p, row, slice(0, 1)) * -1.0 if joint.tau is None else joint.tau - ops.sub(p, row, slice(0, 1))
+            p_hat = p + ops.sub(P, rd, row) * (rhs / Dj)
+        else:
+            St, Dj = inward.transposed[j], inward.pivot[j]
+            rhs = ops.matmul(St, p) * -1.0 if joint.tau is None else joint.tau - ops.matmul(St, p)
+            PS = ops.matmul(P, joint.S)
+            p_hat = p + PS * (rhs / Dj) if joint.free == 1 else p + ops.matmul(PS, ops.solve(Dj, rhs))
+        e = tree.point[j]
+        if bodies[par].c[e] is not None:
+            raise ModelError(f"articulated_bias: the point {e!r} of body {par} has a velocity term c; sweep its "
+                             "terms with articulated_sweep")
+        h[par] = h[par] + _product(ops, bodies[par].RF[e], p_hat)
+    return Inward(inward.inertia, psi, inward.transposed, inward.pivot, inward.modal, inward.modal_inertia,
+                  inward.modal_bias)

@@ -171,3 +171,50 @@ def test_input_response_is_the_difference_of_two_sweeps(free_base):
     full = [implicit_rates(scene, q, v, 0.1, u.joint, *weights, iterate, u.wrenches) for u in (before, after)]
     assert np.abs(change).max() > 1e-2
     np.testing.assert_allclose(change, full[1] - full[0], rtol=0, atol=1e-10 * np.abs(full).max())
+
+
+def _driven_chain():
+    """An actuated ball at the ground, a driven hinge, an actuated hinge: the prescribed joint in the bias pass."""
+    import ctmm.spatial as sp
+    return sp.SpatialModel("driven", [
+        sp.SpatialBody("a", 1.0, (0.1, 0.12, 0.08), center_of_mass=(0.1, 0, 0.4), points={"tip": (0, 0, 1)}),
+        sp.SpatialBody("b", 0.8, (0.05, 0.06, 0.07), center_of_mass=(0, 0.2, 0.3), points={"end": (0, 0.3, 0.6)}),
+        sp.SpatialBody("c", 0.5, (0.02, 0.03, 0.04), center_of_mass=(0.1, 0.1, 0.2)),
+        sp.Spherical(name="ball", parent=None, child="a", actuated=True),
+        sp.Revolute(name="drive", parent="a", point="tip", child="b", axis=(1, 0, 0), position=lambda t: 0.3 * np.sin(2 * t),
+                    rate=lambda t: 0.6 * np.cos(2 * t), acceleration=lambda t: -1.2 * np.sin(2 * t)),
+        sp.Revolute(name="hinge", parent="b", point="end", child="c", axis=(0, 1, 0), actuated=True)])
+
+
+@pytest.mark.parametrize("case", ["tree", "free base", "driven"])
+def test_input_response_about_the_stored_elimination_is_the_full_input_sweep(case):
+    """With the iterate's elimination at hand (``terms.inward``, as the Newton iteration passes it) the input
+    sweep eliminates only the changed loads about the stored articulated inertias
+    (:func:`ctmm.articulated.articulated_bias`): the same numbers, to the bit, as the sweep that forms them
+    again, on random trees with every lawful joint kind and a chain with a driven joint."""
+    from ctmm.articulated import articulated_bias, articulated_inward
+    from ctmm.errors import ModelError
+    from ctmm.ops import NUMPY
+    from ctmm.spatial.body_forms import SpatialScene
+    from ctmm.spatial.implicit import implicit_terms, input_response
+    from ctmm.spatial.ports import SpatialPorts
+
+    rng = np.random.default_rng(11 + len(case))
+    model = _driven_chain() if case == "driven" else random_model(rng, free_base=case == "free base")
+    assert all(layout is None for layout in model.modal)
+    ports, scene = SpatialPorts(model), SpatialScene(model)
+    for _ in range(3):
+        q, v = quaternion_joint_state(rng, model)
+        iterate = rng.normal(size=model.n_velocities)
+        names = sorted(ports.actuators)
+        before, after = (ports.inputs({name: float(rng.normal())
+                                       for name in rng.choice(names, min(8, len(names)), replace=False)})
+                         for _ in range(2))
+        terms = implicit_terms(scene, q, v, 0.1, before.joint, 0.3e-4, 0.5e-2, iterate, before.wrenches)
+        inward = articulated_inward(NUMPY, scene.tree, terms.bodies, terms.joints, terms.kappa)
+        full = input_response(scene, terms, before, after)
+        reused = input_response(scene, terms._replace(inward=inward), before, after)
+        assert np.abs(full).max() > 1e-2
+        assert reused.tobytes() == full.tobytes()
+    with pytest.raises(ModelError, match="velocity term c"):      # the iterate's own terms carry c: refused
+        articulated_bias(NUMPY, scene.tree, terms.bodies, terms.joints, inward)

@@ -111,7 +111,7 @@ class ActuatedNewton:
                   *(np.asarray(f, float) for f in value.modal_force.values()),
                   *(np.asarray(f, float) for f in value.frame_wrench.values())]
         if (arrays[0].shape != (nb,) or arrays[1].shape != (nb, 3)
-                or not all(np.all(np.isfinite(a)) for a in arrays)):
+                or not np.isfinite(np.concatenate([a.ravel() for a in arrays])).all()):    # one check for all
             raise InputError(f"inputs(t, q, qdot) returned actuator values of the wrong shape or not "
                                   f"finite at t = {t:.6g} s (hinge torques {arrays[0]!r}, body forces "
                                   f"{arrays[1]!r})", time=float(t), element="inputs")

@@ -82,7 +82,12 @@ class _NewtonStep:
         self.parent = model.parent.tolist()
         self.kind = model.joint_kind.tolist()
         self.has_parent = model.parent >= 0
+        self.roots = np.flatnonzero(model.parent < 0)       # bodies on the ground (their parent terms are zero)
         self.p = np.maximum(model.parent, 0)
+        self.two_mass = 2.0 * model.mass
+        self.gravity = complex(*model.gravity)
+        # loads on distinct bodies: added in place (np.add.at accumulates repeated bodies in order)
+        self.distinct_loads = len(set(model.load_body.tolist())) == len(model.load_body)
         self.kappa = (model.stiffness * bh2 + model.damping * gh)
         self.kappa_t = (model.translational_stiffness * bh2 + model.translational_damping * gh)
         self.kappa_column = [np.full((1, 1), k) if k else None for k in self.kappa]
@@ -110,36 +115,37 @@ class _NewtonStep:
         p = self.p
         ap, wp = alpha[p], omega[p]
         g = -((ap + 1j * w2[p]) * r) * bh2 - 2.0 * wp * r * gh       # (gx, gy)
-        g = np.where(self.has_parent, g, 0.0)
+        g[self.roots] = 0.0
         ends = E.view(complex)                 # (k, l, c) of body_terms as complex columns: E[:, 0:2] += g ...
         ends[:, 0] += g
         ends[:, 2] -= g * ap
         # third column of K: d F_I / d theta, d F_I / d omega at fixed A_I, F_O
         mass = m.mass
         ac = (A[:, 0] + 1j * A[:, 1] + alpha * (1j * rc)) - w2 * rc        # centre-of-mass acceleration
-        gvx, gvy = m.gravity
-        h = mass * ((-alpha - 1j * w2) * rc) * bh2 - 2.0 * mass * omega * rc * gh     # (hx, hy)
-        ht = -(rc.conjugate() * mass * (ac - complex(gvx, gvy))).real - mass * w2 * (rcx * rcx + rcy * rcy)
+        h = mass * ((-alpha - 1j * w2) * rc) * bh2 - self.two_mass * omega * rc * gh     # (hx, hy)
+        ht = -(rc.conjugate() * mass * (ac - self.gravity)).real - mass * w2 * (rcx * rcx + rcy * rcy)
         if len(m.load_body):
             loads = m.loads(t)
             lb = m.load_body
             c, s = np.cos(theta[lb]), np.sin(theta[lb])
             rex = c * m.load_point[:, 0] - s * m.load_point[:, 1]
             rey = s * m.load_point[:, 0] + c * m.load_point[:, 1]
-            np.add.at(ht, lb, rex * loads[:, 0] + rey * loads[:, 1])
-        child_term = np.where(self.has_parent, (r.conjugate() * (F[:, 0] + 1j * F[:, 1])).real, 0.0)
+            if self.distinct_loads:
+                ht[lb] += rex * loads[:, 0] + rey * loads[:, 1]
+            else:
+                np.add.at(ht, lb, rex * loads[:, 0] + rey * loads[:, 1])
+        child_term = (r.conjugate() * (F[:, 0] + 1j * F[:, 1])).real
+        child_term[self.roots] = 0.0
         ht -= np.bincount(p, child_term, minlength=m.n_bodies)       # each body's children, in order
         ht *= bh2
-        K[:, 2] += h.real
-        K[:, 5] += h.imag
+        K[:, 2:6:3] += h.view(float).reshape(-1, 2)                   # columns 2, 5: (hx, hy)
         K[:, 8] += ht
-        h_alpha = h * alpha
-        b[:, 0] -= h_alpha.real
-        b[:, 1] -= h_alpha.imag
+        b[:, :2] -= (h * alpha).view(float).reshape(-1, 2)
         b[:, 2] -= ht * alpha
         # exactly implicit hinge laws: tau = tau(iterate) - kappa (alpha_rel - alpha_rel_iterate)
         tau = hinge_torques(m, theta, omega, t)
-        rel = alpha - np.where(self.has_parent, ap, 0.0)
+        ap[self.roots] = 0.0                    # a root's hinge angle is its own
+        rel = alpha - ap
         kappa = self.kappa                      # nonlinear hinge laws: their tangent at the iterate (Newton)
         if m.nonlinear_hinges:
             kappa = kappa + law_kappa(m, *m.relative_angles(theta, omega), bh2, gh)

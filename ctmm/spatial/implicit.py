@@ -45,7 +45,8 @@ exactly as the joint laws are.  ``P`` has the rank of that dependence (one per s
 actuator), so it is never formed: a minimal-residual Krylov solve (:func:`_low_rank_update`) ends
 after ``rank + 1`` products, each a directional difference of ``U`` (relative step ``1e-7``) and one
 sweep of the changed inputs alone through the iterate's articulated inertias (:func:`input_response`:
-no body or joint terms formed again, about a third of the cost of a full sweep).  Inputs that do
+no body or joint terms formed again; on rigid trees the inertias eliminated by the iterate's own sweep are
+reused and only the changed loads eliminated, :func:`ctmm.articulated.articulated_bias`).  Inputs that do
 not depend on the state (delayed loops read from the history, held controller outputs, time
 signals) cost one evaluation of ``U`` and no sweep.  The
 geometric terms stay at the iterate as above (linear convergence, measured 6-7 sweeps per step at
@@ -63,7 +64,7 @@ from typing import Any, Callable, Mapping, NamedTuple
 import numpy as np
 
 from .. import validation
-from ..articulated import SingularPivotError, articulated_sweep
+from ..articulated import Inward, SingularPivotError, articulated_bias, articulated_inward, articulated_outward
 from ..errors import ConvergenceError, ModelError, SimulationError
 from ..loop_integration import ProjectionHook
 from ..guard import StabilityLimitWarning
@@ -97,6 +98,7 @@ class ImplicitTerms(NamedTuple):
     kappa: list
     states: list
     q: Any = None        # the configuration (nq,) of the iterate (beams' modal coordinates in input_response)
+    inward: Inward | None = None    # the elimination of these terms (input_response sweeps new loads about it)
 
 
 def implicit_terms(scene: SpatialScene, q: np.ndarray, v: np.ndarray, t: float, inputs: Mapping[str, Any] | None,
@@ -143,10 +145,25 @@ def implicit_terms(scene: SpatialScene, q: np.ndarray, v: np.ndarray, t: float, 
     return ImplicitTerms(bodies, implicit, kappa, states, np.asarray(q))
 
 
-def _rates(scene: SpatialScene, bodies: list, joints: list, kappa: list) -> np.ndarray:
-    solution = articulated_sweep(NUMPY, scene.tree, bodies, joints, kappa)
+# r x f of 3-vectors as np.cross forms it (the same products and differences, without its axis handling)
+_NEXT, _LAST = np.array([1, 2, 0]), np.array([2, 0, 1])
+_ZERO_COLUMN = np.zeros((1, 6, 1))
+_ZERO_COLUMN.flags.writeable = False           # shared by the points of input_response (read only)
+
+
+def _swept(scene: SpatialScene, bodies: list, joints: list, kappa: list, inward: Inward | None = None
+           ) -> tuple[np.ndarray, Inward]:
+    """``v_dot`` (nv,) of the one articulated sweep of the terms and its elimination; with ``inward`` (the
+    elimination of terms with the same inertias, rigid bodies) only the new biases are eliminated
+    (:func:`ctmm.articulated.articulated_bias`)."""
+    if inward is None:
+        inward = articulated_inward(NUMPY, scene.tree, bodies, joints, kappa)
+    else:
+        inward = articulated_bias(NUMPY, scene.tree, bodies, joints, inward)
+    # the rates read the accelerations and relative accelerations only: no joint wrenches formed
+    solution = articulated_outward(NUMPY, scene.tree, bodies, joints, inward, forces=False)
     parts = [np.asarray(a)[0, :, 0] for a in scene.velocity_rates(solution)]
-    return np.concatenate(parts) if parts else np.zeros(0)
+    return (np.concatenate(parts) if parts else np.zeros(0)), inward
 
 
 def implicit_rates(scene: SpatialScene, q: np.ndarray, v: np.ndarray, t: float, inputs: Mapping[str, Any] | None,
@@ -155,7 +172,7 @@ def implicit_rates(scene: SpatialScene, q: np.ndarray, v: np.ndarray, t: float, 
     """One sweep of the implicit context: ``v_dot`` (nv,) with the joint laws linearised about ``iterate``
     (arguments as :func:`implicit_terms`)."""
     terms = implicit_terms(scene, q, v, t, inputs, position_weight, velocity_weight, iterate, wrenches)
-    return _rates(scene, terms.bodies, terms.joints, terms.kappa)
+    return _swept(scene, terms.bodies, terms.joints, terms.kappa)[0]
 
 
 def input_response(scene: SpatialScene, terms: ImplicitTerms, before: Any, after: Any) -> np.ndarray:
@@ -165,9 +182,12 @@ def input_response(scene: SpatialScene, terms: ImplicitTerms, before: Any, after
     The sweep is affine in the actuator values at a fixed iterate, so the change is the sweep of the
     same articulated inertias (``M``, ``S``, ``kappa``) with only the changed joint forces and body
     loads (``h = -[f ; m + r x f]`` about the inboard point) and no velocity or gravity terms: no
-    body or joint terms are formed again.
+    body or joint terms are formed again.  When ``terms`` carry their elimination (``terms.inward``) and
+    every body is rigid, the articulated inertias are not formed again either: only the changed loads are
+    eliminated about them (:func:`ctmm.articulated.articulated_bias`; the same numbers as the full sweep).
     """
     model = scene.model
+    reuse = terms.inward is not None and not any(layout is not None for layout in model.modal)
     bodies = []
     for j, (body, state) in enumerate(zip(terms.bodies, terms.states)):
         rotation = np.asarray(state.rotation)[0]
@@ -188,8 +208,8 @@ def input_response(scene: SpatialScene, terms: ImplicitTerms, before: Any, after
             for point, w in changed:
                 arm = rotation @ point + offset
                 h[0, :3, 0] -= w[:3]
-                h[0, 3:, 0] -= w[3:] + np.cross(arm, w[:3])
-        bodies.append(dataclasses.replace(body, h=h, c={name: np.zeros((1, 6, 1)) for name in body.c}))
+                h[0, 3:, 0] -= w[3:] + (arm[_NEXT] * w[_LAST] - arm[_LAST] * w[_NEXT])     # r x f
+        bodies.append(dataclasses.replace(body, h=h, c=dict.fromkeys(body.c, None if reuse else _ZERO_COLUMN)))
     joints = []
     for joint, term in zip(model.joints, terms.joints):
         change = None
@@ -202,7 +222,7 @@ def input_response(scene: SpatialScene, terms: ImplicitTerms, before: Any, after
             tau = tau + np.reshape(change, np.shape(tau))
         prescribed = None if term.prescribed is None else np.zeros(np.shape(term.prescribed))
         joints.append(dataclasses.replace(term, c=None, tau=tau, prescribed=prescribed))
-    return _rates(scene, bodies, joints, terms.kappa)
+    return _swept(scene, bodies, joints, terms.kappa, terms.inward if reuse else None)[0]
 
 
 def _joint_of(model: SpatialModel, index: int) -> str:
@@ -437,9 +457,11 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
                 delta, q_at, v_at = configuration(a)
                 u0 = applied(t_eval, q_at, v_at)
                 terms = linearised(a, delta, q_at, v_at, u0)
-                swept = chart_rates(_rates(scene, terms.bodies, terms.joints, terms.kappa), delta)
+                body_rates, inward = _swept(scene, terms.bodies, terms.joints, terms.kappa)
+                swept = chart_rates(body_rates, delta)
                 a_new = swept if input_map is None else \
-                    a + _low_rank_update(swept - a, input_product(a, delta, q_at, v_at, u0, terms), model.n_velocities)
+                    a + _low_rank_update(swept - a, input_product(a, delta, q_at, v_at, u0, terms._replace(inward=inward)),
+                                         model.n_velocities)
             except InputError:
                 raise
             except (SimulationError, np.linalg.LinAlgError) as exc:
