@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ..ops import NUMPY, Ops, batch_shape
+from ..ops import Ops, batch_shape
 from ..protocol import JointTerms
 from .frames import block_diagonal, constant, cross
 from .joint_kinematics import JointMotion
@@ -84,13 +84,11 @@ def child_motion(ops: Ops, joint_rotation: np.ndarray, rel: JointMotion, parent_
     parent_omega : ops (3, 1) or None
         The parent's angular velocity [rad/s] (``None``: not turning).
 
-    On numpy ``joint_rotation`` may also be the constant ``(1, 3, 3)`` itself (a scene's, formed once) and the
-    statements run as :func:`_numpy_child_motion`.
+    On numpy ``joint_rotation`` may also be the constant ``(1, 3, 3)`` itself (a scene's, formed once), and
+    ``diag(R_PJ, R_PJ)`` and the bias ``c`` are filled into one allocation each (:func:`_frames`, :func:`_stacked`).
     """
-    if ops.name == "numpy":
-        R_J = joint_rotation if np.ndim(joint_rotation) == 3 else constant(ops, joint_rotation)
-        return _numpy_child_motion(R_J, rel, parent_rotation, point, point_velocity, parent_omega)
-    R_J = constant(ops, joint_rotation)
+    numpy = ops.name == "numpy"
+    R_J = joint_rotation if numpy and np.ndim(joint_rotation) == 3 else constant(ops, joint_rotation)
     R_PJ = R_J if parent_rotation is None else ops.matmul(parent_rotation, R_J)
     R_c = ops.matmul(R_PJ, rel.rotation)
     offset = None if rel.translation is None else ops.matmul(R_PJ, rel.translation)
@@ -102,7 +100,7 @@ def child_motion(ops: Ops, joint_rotation: np.ndarray, rel: JointMotion, parent_
     v_o = v_C if (offset is None or w_c is None) else _add(v_C, cross(ops, w_c, offset))
     state = BodyState(R_c, o_c, v_o if v_o is not None else ops.zeros(3, 1), w_c if w_c is not None else ops.zeros(3, 1),
                       point)
-    S = ops.matmul(block_diagonal(ops, R_PJ, R_PJ, 3, 3), rel.S) if rel.S is not None else None
+    S = ops.matmul(_frames(ops, R_PJ, numpy), rel.S) if rel.S is not None else None
     c_lin = None if rel.bias is None else ops.matmul(R_PJ, ops.sub(rel.bias, slice(0, 3), slice(0, 1)))
     c_ang = None if rel.bias is None else ops.matmul(R_PJ, ops.sub(rel.bias, slice(3, 6), slice(0, 1)))
     if parent_omega is not None:
@@ -110,53 +108,33 @@ def child_motion(ops: Ops, joint_rotation: np.ndarray, rel: JointMotion, parent_
             c_lin = _add(c_lin, cross(ops, parent_omega, u_rel) * 2.0)
         if w_rel is not None:
             c_ang = _add(c_ang, cross(ops, parent_omega, w_rel))
-    c = None
-    if c_lin is not None or c_ang is not None:
-        c = ops.block([[c_lin if c_lin is not None else ops.zeros(3, 1)],
-                       [c_ang if c_ang is not None else ops.zeros(3, 1)]])
+    c = None if c_lin is None and c_ang is None else _stacked(ops, c_lin, c_ang, numpy)
     joint = JointTerms(S=S, c=c, tau=rel.tau, tau_q=rel.tau_q, tau_v=rel.tau_v, prescribed=rel.prescribed)
     return ChildMotion(state, joint, offset, w_c)
 
 
-def _numpy_child_motion(R_J: np.ndarray, rel: JointMotion, parent_rotation: Any, point: Any, point_velocity: Any,
-                        parent_omega: Any) -> ChildMotion:
-    """:func:`child_motion` on numpy batches: the same operations on the same operands, the joint frame a constant
-    ``(1, 3, 3)``, ``diag(R_PJ, R_PJ)`` and the bias ``c`` filled into one allocation each (their
-    :func:`~ctmm.spatial.frames.block_diagonal` and block assembly without the generic checks)."""
-    R_PJ = R_J if parent_rotation is None else np.matmul(parent_rotation, R_J)
-    R_c = np.matmul(R_PJ, rel.rotation)
-    offset = None if rel.translation is None else np.matmul(R_PJ, rel.translation)
-    o_c = point if offset is None else point + offset
-    w_rel = None if rel.angular is None else np.matmul(R_PJ, rel.angular)
-    u_rel = None if rel.linear is None else np.matmul(R_PJ, rel.linear)
-    w_c = _add(parent_omega, w_rel)
-    v_C = _add(point_velocity, u_rel)
-    v_o = v_C if (offset is None or w_c is None) else _add(v_C, cross(NUMPY, w_c, offset))
-    state = BodyState(R_c, o_c, v_o if v_o is not None else np.zeros((1, 3, 1)),
-                      w_c if w_c is not None else np.zeros((1, 3, 1)), point)
-    S = None
-    if rel.S is not None:
-        frames = np.zeros(R_PJ.shape[:-2] + (6, 6), dtype=R_PJ.dtype)
-        frames[..., :3, :3] = R_PJ
-        frames[..., 3:, 3:] = R_PJ
-        S = np.matmul(frames, rel.S)
-    c_lin = None if rel.bias is None else np.matmul(R_PJ, rel.bias[..., 0:3, 0:1])
-    c_ang = None if rel.bias is None else np.matmul(R_PJ, rel.bias[..., 3:6, 0:1])
-    if parent_omega is not None:
-        if u_rel is not None:
-            c_lin = _add(c_lin, cross(NUMPY, parent_omega, u_rel) * 2.0)
-        if w_rel is not None:
-            c_ang = _add(c_ang, cross(NUMPY, parent_omega, w_rel))
-    c = None
-    if c_lin is not None or c_ang is not None:
-        parts = [part for part in (c_lin, c_ang) if part is not None]
-        c = np.zeros(batch_shape(*parts) + (6, 1), dtype=np.result_type(*parts, float))
-        if c_lin is not None:
-            c[..., :3, :] = c_lin
-        if c_ang is not None:
-            c[..., 3:, :] = c_ang
-    joint = JointTerms(S=S, c=c, tau=rel.tau, tau_q=rel.tau_q, tau_v=rel.tau_v, prescribed=rel.prescribed)
-    return ChildMotion(state, joint, offset, w_c)
+def _frames(ops: Ops, R_PJ: Any, numpy: bool) -> Any:
+    """``diag(R_PJ, R_PJ)`` (6, 6); on numpy one allocation filled (no generic block checks)."""
+    if not numpy:
+        return block_diagonal(ops, R_PJ, R_PJ, 3, 3)
+    frames = np.zeros(R_PJ.shape[:-2] + (6, 6), dtype=R_PJ.dtype)
+    frames[..., :3, :3] = R_PJ
+    frames[..., 3:, 3:] = R_PJ
+    return frames
+
+
+def _stacked(ops: Ops, c_lin: Any, c_ang: Any, numpy: bool) -> Any:
+    """``[c_lin; c_ang]`` (6, 1), a missing part zero; on numpy one allocation filled."""
+    if not numpy:
+        return ops.block([[c_lin if c_lin is not None else ops.zeros(3, 1)],
+                          [c_ang if c_ang is not None else ops.zeros(3, 1)]])
+    parts = [part for part in (c_lin, c_ang) if part is not None]
+    c = np.zeros(batch_shape(*parts) + (6, 1), dtype=np.result_type(*parts, float))
+    if c_lin is not None:
+        c[..., :3, :] = c_lin
+    if c_ang is not None:
+        c[..., 3:, :] = c_ang
+    return c
 
 
 def _add(a: Any, b: Any) -> Any:
