@@ -22,7 +22,8 @@ from .sweep import accelerations
 
 def static_equilibrium(model: PlanarModel, q_guess, *, t: float = 0.0, tolerance: float = 1e-12,
                        stable: bool = False) -> np.ndarray:
-    """Coordinates where all accelerations vanish at rest (``scipy.optimize.root`` from ``q_guess``).
+    """Coordinates where all accelerations vanish at rest (``scipy.optimize.root`` from ``q_guess``, polished by
+    Newton steps to round-off).
 
     Absolute body angles (coordinates ``"<body>.theta"``) are returned wrapped into
     ``[-pi, pi)``.  Which equilibrium is found depends on the guess (a pendulum also balances
@@ -118,11 +119,15 @@ def _root(model: PlanarModel, q_guess: np.ndarray, t: float, tolerance: float) -
     """A root of the accelerations at rest from ``q_guess``, body angles wrapped into ``[-pi, pi)``.
 
     The guess itself is returned (wrapped) when its residual already meets :data:`RESIDUAL_TOLERANCE` (the
-    certificate of every root returned here; e.g. the hanging configuration of a chain on smooth hinges).
+    certificate of every root returned here; e.g. the hanging configuration of a chain on smooth hinges), as it
+    is when its residual is at most :data:`POLISHED_RESIDUAL`, else polished (below).
     Otherwise ``scipy.optimize.root`` (``hybr``) runs, with the complex-step Jacobian of
     :func:`complex_step_jacobian` where :func:`complex_step_applies` (one batched sweep per Jacobian instead of
     ``n`` evaluations), else with its own forward differences; should the complex-step search not certify, it
-    is repeated with the differences."""
+    is repeated with the differences.  The root found is then polished by Newton steps on
+    :func:`position_jacobian` (:data:`POLISH_STEPS` at most, each kept only when it at least halves the largest
+    residual): ``hybr`` stops on its step size, which can leave accelerations of ~1e-11 at rest, and a
+    linearisation about the point (its preloads) is consistent only to that residual."""
     angles = np.array([c.endswith(".theta") for c in model.coordinates], dtype=bool)
 
     def residual(q: np.ndarray) -> np.ndarray:
@@ -141,19 +146,39 @@ def _root(model: PlanarModel, q_guess: np.ndarray, t: float, tolerance: float) -
             error = float(np.max(np.abs(residual(q)), initial=0.0))
         return q, error
 
+    def polished(q: np.ndarray, error: float) -> np.ndarray:
+        for _ in range(POLISH_STEPS):
+            if error == 0.0:
+                break
+            try:
+                step = np.linalg.solve(position_jacobian(model, q, t), residual(q))
+            except np.linalg.LinAlgError:    # a singular stiffness (neutral direction): keep the root found
+                break
+            trial = wrapped(q - step)
+            trial_error = float(np.max(np.abs(residual(trial)), initial=0.0))
+            if not trial_error <= 0.5 * error:
+                break
+            q, error = trial, trial_error
+        return q
+
     q = wrapped(q_guess)
     error = float(np.max(np.abs(residual(q)), initial=0.0))
     if error <= RESIDUAL_TOLERANCE:
-        return q
+        return q if error <= POLISHED_RESIDUAL else polished(q, error)
     if complex_step_applies(model):
         q, error = search(q_guess, lambda x: complex_step_jacobian(model, x, t))
     if not error <= RESIDUAL_TOLERANCE:
         q, error = search(q_guess, None)
     if not error <= RESIDUAL_TOLERANCE:      # not-a-number included
         raise ModelError(f"no static equilibrium found near {q_guess!r} (residual {error:.2e})")
-    return q
+    return polished(q, error)
 
 
+POLISH_STEPS = 3
+"""Newton steps at most that polish a root of :func:`static_equilibrium` (each kept when it halves the residual)."""
+POLISHED_RESIDUAL = 1e-12
+"""Largest accelerations at rest [rad/s^2, m/s^2, modal] of a guess that :func:`static_equilibrium` returns as it
+is; a guess with more (up to :data:`RESIDUAL_TOLERANCE`) is polished by Newton steps first."""
 RESIDUAL_TOLERANCE = 1e-8
 """Largest accelerations [rad/s^2, m/s^2, modal] at rest of an equilibrium returned by :func:`static_equilibrium`."""
 CROSS_CHECK_TOLERANCE = 1e-6
