@@ -72,7 +72,7 @@ from .control.planar_time import controller_realisation
 from .compiled_references import reference_at, symbolic_reference
 from .control.chain_plant import ChainPlant
 from .errors import ModelError
-from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
+from .generated_loop import BlockRunner, compiled_time_loop, inlined_call, run_blocks
 from .model_description import describe
 from .saturation import refuse_saturation
 from .schemes import History, Scheme, as_scheme
@@ -314,8 +314,8 @@ class CompiledChainScheme:
             p, t0, k = ca.MX.sym("p", 0), ca.MX.sym("t0"), ca.MX.sym("k")
             branches = [self._step_function(f"step{j}", form, scheme_maps) for j, scheme_maps in enumerate(maps)]
             t_n = t0 + k * self.dt
-            new = branches[0](y, t_n, u) if len(maps) == 1 else ca.if_else(
-                y[self.start_up_index] < start_up, branches[0](y, t_n, u), branches[1](y, t_n, u), True)
+            first, *later = (inlined_call(branch, [y, t_n, u]) for branch in branches)
+            new = first if not later else ca.if_else(y[self.start_up_index] < start_up, first, later[0], True)
             return ca.Function("step", [y, u, h, p, t0, k], [new]), []
 
         name = f"chain_{m}m_{self.scheme.name}" + (f"_{len(self.loops)}l" if self.loops else "") + (

@@ -339,3 +339,42 @@ def test_input_reads_are_rewritten_only_as_whole_names_in_functions_starting_a_l
         + head.format(1) + "  const casadi_real *ctmm_in0 = arg[0] ? arg[0] : ctmm_zeros;\n"
         "  const casadi_real *ctmm_in3 = arg[3] ? arg[3] : ctmm_zeros;\n"
         "  b=ctmm_in3[12]; c=xarg[0]? xarg[0][1] : 0; d=ctmm_in0[0];\n}\n")
+
+
+def test_a_small_mx_wrapper_is_inlined_into_the_time_loop_with_the_same_numbers(tmp_path, monkeypatch):
+    """:func:`ctmm.generated_loop.inlined_call` inlines a step that only wraps calls (at most
+    ``INLINED_INSTRUCTIONS``) into the time loop: fewer copies of the state per step in the generated C, the same
+    numbers to the bit (and those of the steps worked by hand); an SX function and a larger graph stay calls."""
+    ca = pytest.importorskip("casadi")
+    import numpy as np
+
+    from ctmm import generated_loop
+    from ctmm.generated_loop import inlined_call, time_loop_functions
+
+    n = 300
+    x, t = ca.MX.sym("x", n), ca.MX.sym("t")
+    inner = ca.Function("inner", [x, t], [0.5 * x + ca.sin(t)])
+    y, u, h, p, t0, k = (ca.MX.sym(label, rows) for label, rows in (("y", n), ("u", 0), ("h", 1), ("p", 0),
+                                                                    ("t0", 1), ("k", 1)))
+    step = ca.Function("step", [y, u, h, p, t0, k], [inner(y, t0 + k * h)])
+    flags = ("-O0", "-shared", "-fPIC")
+    start = np.linspace(-1.0, 1.0, n)
+    results, sources = [], []
+    for limit in (0, generated_loop.INLINED_INSTRUCTIONS):
+        monkeypatch.setattr(generated_loop, "INLINED_INSTRUCTIONS", limit)
+        stride, _, blocks = time_loop_functions(step, 3, 2)
+        source = codegen.casadi_source([step, stride, *blocks], f"wrapped{limit}")
+        sources.append(source)
+        loaded = codegen.load_casadi([step, stride, *blocks], f"wrapped{limit}", cache_dir=tmp_path, flags=flags)
+        results.append(np.asarray(loaded[2](start, ca.DM(0, 1), 0.1, ca.DM(0, 1), 0.3, 2.0)))
+    assert "= step(" in sources[0] and "= step(" not in sources[1]     # the fold calls inner, not step
+    np.testing.assert_array_equal(results[1], results[0])
+    assert np.max(np.abs(results[0][:, 0] - (0.5 ** 3 * start + 0.25 * np.sin(0.5) + 0.5 * np.sin(0.6)
+                                               + np.sin(0.7)))) <= 1e-15
+    symbol, other = ca.MX.sym("z", 2), ca.MX.sym("w", 2)          # called on other symbols (casadi inlines a
+    expanded = ca.Function("expanded", [symbol], [2.0 * symbol]).expand()        # call on the function's own)
+    assert "expanded" in str(inlined_call(expanded, [other]))
+    large = ca.Function("large", [symbol], [sum((ca.sin(symbol * j) for j in range(40)), ca.MX.zeros(2))])
+    assert large.n_instructions() > generated_loop.INLINED_INSTRUCTIONS
+    assert "large" in str(inlined_call(large, [other]))
+    assert "wrapper" not in str(inlined_call(ca.Function("wrapper", [symbol], [2.0 * symbol]), [other]))
