@@ -324,9 +324,7 @@ def articulated_inward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints
                     D[j] = D[j] + kappa[j]
             continue
         if joint.prescribed is not None:
-            PS = ops.sub(P, rd, slice(axis, axis + 1)) if axis is not None else ops.matmul(P, joint.S)
-            P_hat = P
-            p_hat = p + (PS * joint.prescribed if axis is not None else ops.matmul(PS, joint.prescribed))
+            P_hat, p_hat = P, _prescribed_bias(ops, joint, P, p, rd)
         elif joint.free == 0:
             P_hat, p_hat = P, p
         elif axis is not None:                      # one unit free direction: rows, columns and a division
@@ -337,14 +335,14 @@ def articulated_inward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints
             if kappa[j] is not None:
                 Dj = Dj + kappa[j]
             D[j] = Dj
-            rhs = ops.sub(p, row, slice(0, 1)) * -1.0 if joint.tau is None else joint.tau - ops.sub(p, row, slice(0, 1))
+            rhs = _joint_load(joint, ops.sub(p, row, slice(0, 1)))
             G, H = coupling[j]
             if G is not None:                       # the outward pass reads S^T Phi + G as its row
                 StP = St[j] = StP + G
             if H is not None:
                 PS = PS + H
             P_hat = P - ops.matmul(PS, StP / Dj)
-            p_hat = p + PS * (rhs / Dj)
+            p_hat = _free_bias(ops, joint, p, PS, Dj, rhs)
         else:
             St[j] = ops.transpose(joint.S)
             PS = ops.matmul(P, joint.S)
@@ -353,7 +351,7 @@ def articulated_inward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints
             if kappa[j] is not None:
                 Dj = Dj + kappa[j]
             D[j] = Dj
-            rhs = ops.matmul(St[j], p) * -1.0 if joint.tau is None else joint.tau - ops.matmul(St[j], p)
+            rhs = _joint_load(joint, ops.matmul(St[j], p))
             G, H = coupling[j]
             if G is not None:
                 StP = StP + G
@@ -361,10 +359,9 @@ def articulated_inward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints
                 PS = PS + H
             if joint.free == 1:                     # one free direction: D is 1 x 1, divide
                 P_hat = P - ops.matmul(PS, StP / Dj)
-                p_hat = p + PS * (rhs / Dj)
             else:
                 P_hat = P - ops.matmul(PS, _solve(ops, Dj, StP, j, "joint pivot"))
-                p_hat = p + ops.matmul(PS, _one_solve(ops, Dj, rhs))
+            p_hat = _free_bias(ops, joint, p, PS, Dj, rhs)
         e = tree.point[j]
         parent = bodies[par]
         RF = parent.RF[e]
@@ -373,6 +370,27 @@ def articulated_inward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints
             p_hat = ops.matmul(P_hat, parent.c[e]) + p_hat
         h[par] = h[par] + _product(ops, RF, p_hat)
     return Inward(Phi, psi, St, D, C, WA, Wh)
+
+
+def _prescribed_bias(ops: Ops, joint: JointTerms, P: Any, p: Any, rd: slice) -> Any:
+    """``p + Phi S a`` passed across a joint of prescribed relative acceleration ``a`` (its inertia ``Phi``
+    unchanged)."""
+    if joint.axis is not None:
+        return p + ops.sub(P, rd, slice(joint.axis, joint.axis + 1)) * joint.prescribed
+    return p + ops.matmul(ops.matmul(P, joint.S), joint.prescribed)
+
+
+def _joint_load(joint: JointTerms, load: Any) -> Any:
+    """``tau - S^T psi'`` of a joint's free directions (``-S^T psi'`` without joint forces)."""
+    return load * -1.0 if joint.tau is None else joint.tau - load
+
+
+def _free_bias(ops: Ops, joint: JointTerms, p: Any, PS: Any, pivot: Any, rhs: Any) -> Any:
+    """``psi_hat = psi' + (Phi S + H) D^-1 (tau - S^T psi')`` passed across a joint with free directions
+    (``PS``: ``Phi S + H``; one direction: a division)."""
+    if joint.axis is not None or joint.free == 1:
+        return p + PS * (rhs / pivot)
+    return p + ops.matmul(PS, _one_solve(ops, pivot, rhs))
 
 
 def articulated_outward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints: Sequence[JointTerms],
@@ -501,20 +519,16 @@ def articulated_bias(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints: 
             continue
         axis = joint.axis
         if joint.prescribed is not None:
-            PS = ops.sub(P, rd, slice(axis, axis + 1)) if axis is not None else ops.matmul(P, joint.S)
-            p_hat = p + (PS * joint.prescribed if axis is not None else ops.matmul(PS, joint.prescribed))
+            p_hat = _prescribed_bias(ops, joint, P, p, rd)
         elif joint.free == 0:
             p_hat = p
         elif axis is not None:
             row = slice(axis, axis + 1)
-            Dj = inward.pivot[j]
-            rhs = ops.sub(p, row, slice(0, 1)) * -1.0 if joint.tau is None else joint.tau - ops.sub(p, row, slice(0, 1))
-            p_hat = p + ops.sub(P, rd, row) * (rhs / Dj)
+            p_hat = _free_bias(ops, joint, p, ops.sub(P, rd, row), inward.pivot[j],
+                               _joint_load(joint, ops.sub(p, row, slice(0, 1))))
         else:
-            St, Dj = inward.transposed[j], inward.pivot[j]
-            rhs = ops.matmul(St, p) * -1.0 if joint.tau is None else joint.tau - ops.matmul(St, p)
-            PS = ops.matmul(P, joint.S)
-            p_hat = p + PS * (rhs / Dj) if joint.free == 1 else p + ops.matmul(PS, ops.solve(Dj, rhs))
+            p_hat = _free_bias(ops, joint, p, ops.matmul(P, joint.S), inward.pivot[j],
+                               _joint_load(joint, ops.matmul(inward.transposed[j], p)))
         e = tree.point[j]
         if bodies[par].c[e] is not None:
             raise ModelError(f"articulated_bias: the point {e!r} of body {par} has a velocity term c; sweep its "
