@@ -64,6 +64,8 @@ class ChainDynamics:
     affine : bool
         Use the certified affine rates where the chain has them (:mod:`ctmm.chain_affine`); ``False``
         keeps one sweep per rate (:meth:`swept_rate`, the reference).
+    balance_only : bool
+        Skip the massless tangents (nonlinear connectors allowed): only :meth:`forces`, :meth:`inputs` and the nodes.
 
     Raises
     ------
@@ -73,7 +75,7 @@ class ChainDynamics:
         massless node) without closed-form rates is refused when its rates are needed.
     """
 
-    def __init__(self, chain, affine: bool = True) -> None:
+    def __init__(self, chain, affine: bool = True, *, balance_only: bool = False) -> None:
         self.chain = chain
         self.tree: LumpedTree = lumped_tree(chain)
         tree = self.tree
@@ -97,7 +99,7 @@ class ChainDynamics:
         self._linear: LinearRates | None | bool = False if affine else None      # read on first use
         q = self.index_Q
         self.n_r = 0
-        if q.size:
+        if q.size and not balance_only:             # balance_only: forces, inputs, nodes (massless_points.balance)
             laws = [e.name for e in chain.body if hasattr(e, "law") and not e.is_point]
             if laws:                                # their tangents are read once below (affine families only)
                 raise ModelError(f"chain {chain.name!r}: the ODE methods condense the massless points with constant "
