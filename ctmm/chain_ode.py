@@ -380,12 +380,18 @@ class ChainDynamics:
         x_points, v_points = initial_state(self.chain, x0, v0)
         if not self.index_Q.size:
             return x_points, v_points
-        y = self.consistent_start(t0, x0, v0, held_from_signals=False)
+        try:                                # the balance with a prescribed start where it is at t0 (closed forms)
+            held = self._start_motion is not None and self._start_motion(t0) is not None
+        except ModelError:
+            held = False
+        y = self.consistent_start(t0, x0, v0, held_from_signals=held)
         n, I, q = self.tree.n_nodes, self.index_I, self.index_Q
         x, v = np.zeros(n), np.zeros(n)
         for p, k in enumerate(self.node_of_point):
             if k >= 0:
                 x[k], v[k] = x_points[p, 0], v_points[p, 0]
+        if held:
+            self.hold(t0, x, v)
         x[I], v[I] = y[:I.size], y[I.size:2 * I.size]
         if self.n_r:
             x[q] = self.P_r @ y[2 * I.size:]

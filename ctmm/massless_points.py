@@ -14,7 +14,7 @@ from .chain_start import initial_state, point_of_element
 from .errors import ModelError
 from .system import Chain
 
-__all__ = ["algebraic_points", "algebraic_point_rates", "balanced_start"]
+__all__ = ["algebraic_points", "algebraic_point_rates", "balanced_start", "hold_supports"]
 
 
 def algebraic_points(system: Chain) -> np.ndarray:
@@ -117,6 +117,10 @@ def balanced_start(system: Chain, x0, v0, t0: float) -> tuple[np.ndarray, np.nda
     for p, k in enumerate(dynamics.node_of_point):
         if k >= 0:
             x[k] = x_points[p, 0]
+    try:                                          # a prescribed start where it is at t0 (closed forms)
+        dynamics.hold(t0, x, np.zeros(n))
+    except ModelError:
+        pass
     given = {name: int(dynamics.node_of_point[point_of_element(system, name)]) for name in (x0 or {})}
     given = {name: (k, x[k]) for name, k in given.items() if k in q}
     inputs, wall, still = dynamics.inputs(t0), dynamics.wall_motion(t0), np.zeros((1 + 2 * q.size, n))
@@ -146,4 +150,15 @@ def balanced_start(system: Chain, x0, v0, t0: float) -> tuple[np.ndarray, np.nda
                              f"({x[k]:.9g} m under the other initial positions); leave it out of x0, or give it a mass")
     massless = np.isin(dynamics.node_of_point, q)
     x_points[massless, 0] = x[dynamics.node_of_point[massless]]
+    hold_supports(dynamics, x_points, v_points, t0)
     return x_points, v_points
+
+
+def hold_supports(dynamics: ChainDynamics, x: np.ndarray, v: np.ndarray, t0: float) -> None:
+    """Put the points held by displacement-type supports (``x``, ``v``: ``(n_points, 1)``, in place) on their motion
+    at ``t0`` [s]; a support whose signal has no closed-form rate stays where it is."""
+    for points, motion in dynamics.held_points():
+        try:
+            x[points, 0], v[points, 0] = motion(t0)[:2]
+        except ModelError:
+            pass
