@@ -99,12 +99,12 @@ class ChainDynamics:
         self._linear: LinearRates | None | bool = False if affine else None      # read on first use
         q = self.index_Q
         self.n_r = 0
-        if q.size and not balance_only:             # balance_only: forces, inputs, nodes (massless_points.balance)
+        if q.size and not balance_only:   # balance_only: forces, inputs, nodes (massless_points.balanced_start)
             laws = [e.name for e in chain.body if hasattr(e, "law") and not e.is_point]
             if laws:                                # their tangents are read once below (affine families only)
-                raise ModelError(f"chain {chain.name!r}: the ODE methods condense the massless points with constant "
-                                 f"tangents, which the nonlinear connectors {laws} do not have; give the points next "
-                                 "to them a mass, or use a DT-TMM scheme (Newton on the step)")
+                raise ModelError(f"chain {chain.name!r}: the ODE methods and compiled=True condense the massless "
+                                 f"points with constant tangents, which the nonlinear connectors {laws} do not have; "
+                                 "give the points next to them a mass, or use a DT-TMM scheme with compiled=False")
             self.Jx, self.Jv = self._massless_tangents()                   # rows: equations, columns: nodes
             damping = -0.5 * (self.Jv + self.Jv.T)
             values, vectors = np.linalg.eigh(damping)

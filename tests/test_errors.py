@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 import ctmm
-from ctmm.elements import BeamClamped, BeamFree, Damper, Elastic, Fixed, Free, GroundedSpring, Mass, Spring, SpringDamper
+from ctmm.elements import (BeamClamped, BeamFree, Damper, Elastic, Fixed, Free, GroundedSpring, Mass, Spring,
+                           SpringDamper)
 from ctmm.schemes import GeneralizedAlpha, Newmark, WilsonTheta
 from ctmm.spatial_beam_elements import SpatialClamped
 

@@ -88,6 +88,8 @@ def test_massless_point_between_a_nonlinear_and_a_linear_spring():
     assert np.ptp(runs[1]["m1.x"]) > 0.05 and errors[1] < 2e-6 * 0.08 and 3.5 < errors[0] / errors[1] < 4.5
     with pytest.raises(ModelError, match="nonlinear connectors"):
         ctmm.simulate(chain, 0.1, 1e-3, x0={"m1": 0.08}, method="rk4")
+    with pytest.raises(ModelError, match="nonlinear connectors.*DT-TMM scheme with compiled=False"):
+        ctmm.simulate(chain, 0.1, 1e-3, x0={"m1": 0.08}, method="newmark", compiled=True)   # said "use a DT-TMM scheme"
 
 
 def test_massless_point_left_out_of_x0_starts_at_its_balance_and_small_steps_converge():
