@@ -64,6 +64,8 @@ class ChainDynamics:
     affine : bool
         Use the certified affine rates where the chain has them (:mod:`ctmm.chain_affine`); ``False``
         keeps one sweep per rate (:meth:`swept_rate`, the reference).
+    balance_only : bool
+        Skip the massless tangents (nonlinear connectors allowed): only :meth:`forces`, :meth:`inputs` and the nodes.
 
     Raises
     ------
@@ -73,7 +75,7 @@ class ChainDynamics:
         massless node) without closed-form rates is refused when its rates are needed.
     """
 
-    def __init__(self, chain, affine: bool = True) -> None:
+    def __init__(self, chain, affine: bool = True, *, balance_only: bool = False) -> None:
         self.chain = chain
         self.tree: LumpedTree = lumped_tree(chain)
         tree = self.tree
@@ -97,12 +99,12 @@ class ChainDynamics:
         self._linear: LinearRates | None | bool = False if affine else None      # read on first use
         q = self.index_Q
         self.n_r = 0
-        if q.size:
+        if q.size and not balance_only:   # balance_only: forces, inputs, nodes (massless_points.balanced_start)
             laws = [e.name for e in chain.body if hasattr(e, "law") and not e.is_point]
             if laws:                                # their tangents are read once below (affine families only)
-                raise ModelError(f"chain {chain.name!r}: the ODE methods condense the massless points with constant "
-                                 f"tangents, which the nonlinear connectors {laws} do not have; give the points next "
-                                 "to them a mass, or use a DT-TMM scheme (Newton on the step)")
+                raise ModelError(f"chain {chain.name!r}: the ODE methods and compiled=True condense the massless "
+                                 f"points with constant tangents, which the nonlinear connectors {laws} do not have; "
+                                 "give the points next to them a mass, or use a DT-TMM scheme with compiled=False")
             self.Jx, self.Jv = self._massless_tangents()                   # rows: equations, columns: nodes
             damping = -0.5 * (self.Jv + self.Jv.T)
             values, vectors = np.linalg.eigh(damping)
@@ -378,12 +380,18 @@ class ChainDynamics:
         x_points, v_points = initial_state(self.chain, x0, v0)
         if not self.index_Q.size:
             return x_points, v_points
-        y = self.consistent_start(t0, x0, v0, held_from_signals=False)
+        try:                                # the balance with a prescribed start where it is at t0 (closed forms)
+            held = self._start_motion is not None and self._start_motion(t0) is not None
+        except ModelError:
+            held = False
+        y = self.consistent_start(t0, x0, v0, held_from_signals=held)
         n, I, q = self.tree.n_nodes, self.index_I, self.index_Q
         x, v = np.zeros(n), np.zeros(n)
         for p, k in enumerate(self.node_of_point):
             if k >= 0:
                 x[k], v[k] = x_points[p, 0], v_points[p, 0]
+        if held:
+            self.hold(t0, x, v)
         x[I], v[I] = y[:I.size], y[I.size:2 * I.size]
         if self.n_r:
             x[q] = self.P_r @ y[2 * I.size:]

@@ -110,6 +110,11 @@ class Chain:
             yield "elements use different state layouts: " + ", ".join(sorted(lay.name for lay in layouts))
         if not layouts:
             yield "chain has no elements between its boundaries"
+        for boundary in (elements[0], elements[-1]):
+            fixed = getattr(boundary, "layout", None) if isinstance(boundary, Boundary) else None
+            if fixed is not None and len(layouts) == 1 and fixed.name != next(iter(layouts)).name:
+                yield (f"boundary {boundary.name!r} ({type(boundary).__name__}) is for the {fixed.name!r} layout, "
+                       f"the elements use {next(iter(layouts)).name!r}; use Fixed, Free or Elastic (any layout)")
 
     # -- structure ----------------------------------------------------------------------
     @property

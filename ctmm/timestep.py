@@ -29,7 +29,7 @@ from .assembly import (SOLVERS, BoundaryEnd, BoundaryStart, clamped_start_solve,
                        shift_forces)
 from .elements.base import Linearisation
 from .chain_ode import ChainDynamics
-from .massless_points import algebraic_point_rates, algebraic_points
+from .massless_points import algebraic_point_rates, algebraic_points, balanced_start, hold_supports
 from .chain_start import initial_acceleration, initial_forces, initial_state, point_labels, rest_positions
 from .elements.beam_time import bending_mesh
 from .elements.nonlinear_connector import newton_step
@@ -469,8 +469,8 @@ def dttmm_start_state(system: Chain, x0, v0, t0: float) -> tuple[np.ndarray, np.
     start consistently."""
     try:
         dynamics = ChainDynamics(system)
-    except ModelError:
-        x, v = initial_state(system, x0, v0)
+    except ModelError:                        # e.g. nonlinear connectors next to massless points
+        x, v = balanced_start(system, x0, v0, t0)
         return x, v, False
     consistent = True
     try:
@@ -480,11 +480,7 @@ def dttmm_start_state(system: Chain, x0, v0, t0: float) -> tuple[np.ndarray, np.
             raise
         x, v = initial_state(system, x0, v0)
         consistent = False
-    for points, motion in dynamics.held_points():
-        try:
-            x[points, 0], v[points, 0] = motion(t0)[:2]
-        except ModelError:                    # no closed-form rate: the support starts at rest as before
-            pass
+    hold_supports(dynamics, x, v, t0)          # no closed-form rate: the support starts at rest as before
     return x, v, consistent
 
 

@@ -5,8 +5,10 @@ import numpy as np
 import pytest
 
 import ctmm
-from ctmm.elements import Damper, Elastic, Fixed, Free, GroundedSpring, Mass, Spring, SpringDamper
+from ctmm.elements import (BeamClamped, BeamFree, Damper, Elastic, Fixed, Free, GroundedSpring, Mass, Spring,
+                           SpringDamper)
 from ctmm.schemes import GeneralizedAlpha, Newmark, WilsonTheta
+from ctmm.spatial_beam_elements import SpatialClamped
 
 
 def chain():
@@ -56,6 +58,18 @@ def test_chain_structure_errors_reported_together():
     assert "last element must be a boundary" in text
     assert "duplicate element name 'k'" in text
     assert "boundary 'w2' at position 2 is inside the chain" in text
+
+
+@pytest.mark.parametrize("start, end", [
+    (lambda: Fixed("w"), lambda: BeamFree("e")),
+    (lambda: BeamClamped("w"), lambda: Free("e")),
+    (lambda: SpatialClamped("w"), lambda: Free("e")),
+])
+def test_chain_refuses_a_boundary_of_another_layout(start, end):
+    """A beam or spatial-beam boundary ends an axial chain: a mixed-layout chain (Chain's docstring), refused by
+    name; it was accepted and acted as Fixed / Free."""
+    with pytest.raises(ctmm.ModelError, match="is for the '(bending|spatial_beam)' layout, the elements use 'axial'"):
+        ctmm.Chain("mixed", [start(), Spring("k", 100.0), Mass("m", 1.0), end()])
 
 
 @pytest.mark.parametrize("call, pattern", [

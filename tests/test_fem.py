@@ -90,6 +90,23 @@ def test_bad_input_is_refused_by_name(build, message):
         build()
 
 
+def test_natural_frequencies_with_a_massless_free_node_are_refused_by_name():
+    """A node joined by a spring only has no mass: eigh(K, M) cannot factor M (was scipy's LinAlgError)."""
+    fe = FiniteElementModel("m", {"a": (0, 0), "b": (1, 0), "c": (2, 0)},
+                            [BeamElement("e", "a", "b", 1.0, 1.0, 1.0), NodeSpring("s", "b", "c", 1.0)])
+    with pytest.raises(ModelError, match=r"positive definite mass.*nodes without mass: \['c'\]"):
+        fe.natural_frequencies(clamped=["a"])
+    assert fe.natural_frequencies(clamped=["a", "c"]).size == 3          # held, it is fine
+
+
+@pytest.mark.parametrize("index", [2.5, 2.0, "2", True])
+def test_global_subsystem_dof_index_must_be_an_integer(index):
+    """A non-integer DOF index was truncated by int() (2.5 -> DOF 2): a silently different model."""
+    with pytest.raises(ModelError, match="nodes\\['b'\\].*integer DOF indices"):
+        GlobalSubsystem("g", mass_matrix=np.eye(4), damping_matrix=np.zeros((4, 4)), stiffness_matrix=np.eye(4),
+                        nodes={"a": ((0, 0), (0, 1)), "b": ((1, 0), (index, 3))}, boundary=("a",))
+
+
 def particle_net() -> GlobalSubsystem:
     """A hub (the frame node, with a rotary inertia) and an anchor fixed in the frame carrying three particles
     joined by springs: user matrices."""

@@ -98,3 +98,25 @@ def test_spring_damper_node_velocity(scheme):
                               rtol=1e-12, atol=1e-15).y
         errors.append(np.max(np.abs(result.velocity[:, 3, 0] - K2 * (reference[0] - reference[2]) / damping)))
     assert errors[0] / errors[1] > 0.8 * 2 ** order
+
+
+@pytest.mark.parametrize("nonlinear", [False, True])
+def test_massless_point_starts_at_its_balance_with_a_prescribed_start_away_from_zero(nonlinear):
+    """A prescribed start at 0.05 m at t0 (a constant: the chain of a fixed support there): the massless point
+    between the two springs starts at its balance with the support where it is, (100 * 0.05 + 300 * 0.08) / 400,
+    and the mass at -k_series (0.08 - 0.05) / m.  The DT-TMM start balanced it with the support at 0 (0.06 m,
+    -6 m/s^2 instead of -2.25) and then put the support at 0.05; the nonlinear-connector start left the support
+    at 0 for the first step."""
+    from ctmm.elements import PrescribedDisplacement
+    from ctmm.elements.nonlinear_connector import NonlinearSpring
+    from ctmm.nonlinear_laws import LinearLaw
+    first = NonlinearSpring("k1", LinearLaw(100.0)) if nonlinear else Spring("k1", 100.0)
+    run = ctmm.simulate(Chain("base", [PrescribedDisplacement("b", 0.05), first, Spring("k0", 300.0), Mass("m1", 1.0),
+                                       Free("end")]), 0.5, 1e-3, x0={"m1": 0.08}, method="newmark")
+    assert run["b.x"][0] == 0.05
+    assert run["k1.x"][0] == pytest.approx((100.0 * 0.05 + 300.0 * 0.08) / 400.0, rel=1e-12)
+    assert run["m1.a"][0] == pytest.approx(-75.0 * 0.03, rel=1e-12)
+    omega = math.sqrt(75.0)                                   # the series springs on the mass, about 0.05 m
+    exact = 0.05 + 0.03 * np.cos(omega * np.asarray(run.time))
+    phase = omega * 0.5 * (omega * 1e-3) ** 2 / 12.0               # the trapezoidal rule's phase error at 0.5 s
+    assert np.max(np.abs(run["m1.x"] - exact)) < 1.1 * 0.03 * phase

@@ -88,6 +88,30 @@ def test_massless_point_between_a_nonlinear_and_a_linear_spring():
     assert np.ptp(runs[1]["m1.x"]) > 0.05 and errors[1] < 2e-6 * 0.08 and 3.5 < errors[0] / errors[1] < 4.5
     with pytest.raises(ModelError, match="nonlinear connectors"):
         ctmm.simulate(chain, 0.1, 1e-3, x0={"m1": 0.08}, method="rk4")
+    with pytest.raises(ModelError, match="nonlinear connectors.*DT-TMM scheme with compiled=False"):
+        ctmm.simulate(chain, 0.1, 1e-3, x0={"m1": 0.08}, method="newmark", compiled=True)   # said "use a DT-TMM scheme"
+
+
+def test_massless_point_left_out_of_x0_starts_at_its_balance_and_small_steps_converge():
+    """The massless point between the nonlinear and a linear spring, left out of x0, starts at its force balance
+    (it started at its rest length 0: initial acceleration -300 x1 / M1 instead of the balance's, a start error
+    the scheme carried on); and Newton converges at small steps (its rate test amplified round-off by 1 / h:
+    "did not converge" at dt = 1e-5)."""
+    chain = ctmm.Chain("series", [Fixed("wall"), NonlinearSpring("k1", CubicSpring(K1, K3)), Spring("k0", 300.0),
+                                  Mass("m1", M1), Free("end")])
+    def point(x1):                       # the massless point: K1 y + K3 y^3 = 300 (x1 - y)
+        return scipy.optimize.brentq(lambda yq: _wall(yq) - 300.0 * (x1 - yq), -1.0, 1.0, xtol=1e-15)
+
+    for dt, t_final, bound in ((5e-4, 0.15, 1e-5), (1e-5, 0.005, 1e-10)):
+        run = ctmm.simulate(chain, t_final, dt, x0={"m1": 0.08})
+        np.testing.assert_allclose(run["k1.x"][0], point(0.08), rtol=1e-12)
+        np.testing.assert_allclose(run["m1.a"][0], -300.0 * (0.08 - point(0.08)) / M1, rtol=1e-10)
+        sol = scipy.integrate.solve_ivp(lambda _, s: [s[1], -300.0 * (s[0] - point(s[0])) / M1], (0.0, t_final),
+                                        [0.08, 0.0], method="DOP853", t_eval=run.time, rtol=1e-12, atol=1e-14)
+        assert np.max(np.abs(run["m1.x"] - sol.y[0])) < bound * 0.08
+        assert run.info["newton_iterations_max"] <= 4                    # Newton with the exact tangent
+    with pytest.raises(ModelError, match=r"x0\['k1'\].*force balance"):
+        ctmm.simulate(chain, 0.01, 1e-3, x0={"m1": 0.08, "k1": 0.0})
 
 
 def test_frequency_forms_are_the_tangent_at_the_operating_point_or_refused():

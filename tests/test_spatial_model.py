@@ -41,12 +41,25 @@ def test_body_validation_names_parameter_value_and_rule(kwargs, words) -> None:
     (lambda: sp.Revolute(name="j", parent=None, child="b", position=np.sin, rate=np.sin, acceleration=np.cos),
      ["rate[0]", "not the time derivative"]),
     (lambda: sp.Load("l", "b", force=(1.0, 2.0)), ["l: force", "3 signal"]),
+    (lambda: sp.Load("l", "b", force=np.array(1.0)), ["l: force", "3 signal"]),          # was numpy's TypeError
+    (lambda: sp.Universal(name="j", parent=None, child="b", position=np.array(0.3), rate=np.array(0.0),
+                          acceleration=np.array(0.0)), ["j: position", "2 signal"]),
 ])
 def test_joint_validation(make, words) -> None:
     with pytest.raises(ModelError) as error:
         make()
     for word in words:
         assert word in str(error.value)
+
+
+def test_driven_joint_takes_zero_dimensional_arrays_as_numbers() -> None:
+    """A 0-d array is a number where a float is (it was iterated: TypeError 'iteration over a 0-d array')."""
+    joint = sp.Revolute(name="j", parent=None, child="b", position=np.array(0.3), rate=np.array(0.0),
+                        acceleration=np.float64(0.0))
+    assert [signal(0.7) for signal in joint.position] == [0.3]
+    assert [signal(0.7) for signal in joint.rate + joint.acceleration] == [0.0, 0.0]
+    load = sp.Load("l", "b", force=(np.array(1.0), 0.0, np.array(-2.0)))
+    assert [signal(0.0) for signal in load.force] == [1.0, 0.0, -2.0]
 
 
 def test_tree_validation() -> None:

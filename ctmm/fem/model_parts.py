@@ -168,7 +168,13 @@ def clamped_frequencies(owner: str, stiffness: np.ndarray, mass: np.ndarray, dof
     clamped = known_nodes(owner, "clamped", clamped, dofs, allow_empty=True)
     held = {i for node in clamped for i in dofs[node]}
     keep = [i for i in range(stiffness.shape[0]) if i not in held]
-    values = eigh(stiffness[np.ix_(keep, keep)], mass[np.ix_(keep, keep)], eigvals_only=True)
+    free_mass = mass[np.ix_(keep, keep)]
+    if keep and not np.min(np.linalg.eigvalsh(free_mass)) > 1e-12 * np.max(np.abs(free_mass), initial=0.0):
+        massless = [node for node, node_dofs in dofs.items() if node not in clamped
+                    and any(mass[i, i] <= 0.0 for i in node_dofs)] or "none on the diagonal, but M is singular"
+        raise ModelError(f"{owner}: natural frequencies need a positive definite mass matrix on the free DOFs; "
+                         f"nodes without mass: {massless}; clamp them (clamped=...) or give them mass (PointMass)")
+    values = eigh(stiffness[np.ix_(keep, keep)], free_mass, eigvals_only=True)
     return np.sqrt(np.clip(values, 0.0, None))
 
 
@@ -200,9 +206,12 @@ def subsystem_nodes(owner: str, nodes: Any, n: int, dimension: int, rotations: i
         try:
             position, dofs = spec
             position = validation.finite_array(f"{owner}: nodes[{node!r}] position", position)
+            dofs = tuple(dofs)
+            if any(isinstance(i, (bool, np.bool_)) or not isinstance(i, (int, np.integer)) for i in dofs):
+                raise TypeError("a DOF index is not an integer")
             dofs = tuple(int(i) for i in dofs)
         except (TypeError, ValueError) as exc:
-            raise ModelError(f"{owner}: nodes[{node!r}] must be {form}, got {spec!r}") from exc
+            raise ModelError(f"{owner}: nodes[{node!r}] must be {form} with integer DOF indices, got {spec!r}") from exc
         if position.shape != (dimension,) or len(dofs) not in (dimension, dimension + rotations) \
                 or any(not 0 <= i < n for i in dofs):
             raise ModelError(f"{owner}: nodes[{node!r}] must be {form} with DOF indices in 0..{n - 1}, got {spec!r}")

@@ -124,7 +124,8 @@ def _matrix_law(label: str, value: Any, size: int) -> np.ndarray:
 def _signals(label: str, value: Any, count: int) -> tuple:
     if value is None:
         return None
-    items = list(value) if isinstance(value, (list, tuple, np.ndarray)) else [value]
+    several = isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.ndim > 0)
+    items = list(value) if several else [value]          # a 0-d array is one number
     if len(items) != count:
         raise ModelError(f"{label} must be {count} signal(s) (numbers or f(t)), one per coordinate, got {value!r}")
     return tuple(as_signal(f"{label}[{i}]", item) for i, item in enumerate(items))
