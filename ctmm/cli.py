@@ -65,8 +65,9 @@ def summary_line(name: str, summary: dict) -> str:
 
 
 def failure_text(name: str, exc: BaseException) -> str:
-    """One line for a scenario that raised: scenario, what failed, and time/element if known."""
-    message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    """One line for a scenario that raised: scenario, what failed, and time/element if known (a message of
+    several lines, such as a model's list of problems, joined into the one line)."""
+    message = " ".join(line.strip() for line in str(exc).splitlines() if line.strip()) or type(exc).__name__
     if isinstance(exc, SimulationError):
         where = []
         if getattr(exc, "time", None) is not None:

@@ -254,8 +254,38 @@ def _system(reader: _Reader, table: dict) -> Any:
                           f"'type' ({', '.join(reader.types)})")
     built = [part for i, element in enumerate(elements)
              for part in _element(reader, element, ("system", "elements", i), kind)]
-    return reader.call(schema.system_constructor(kind), table, ("system",), skip=("kind", "elements"),
-                       extra={"elements": built})
+    try:
+        return reader.call(schema.system_constructor(kind), table, ("system",), skip=("kind", "elements"),
+                           extra={"elements": built})
+    except SceneError as exc:
+        if not isinstance(exc.__cause__, ModelError):
+            raise
+        where = _named_table(elements, ("system", "elements"), str(exc.__cause__))
+        if where is None:
+            raise
+        raise reader.fail(where, f"{kind}: {exc.__cause__}") from exc.__cause__
+
+
+def _named_table(tables: list, where: KeyPath, message: str) -> KeyPath | None:
+    """The table (and key) of ``tables`` a model's own check names in the first problem of ``message``: the second
+    table of a duplicate name, else the table whose ``name`` the message names first (``'h2'`` or ``h2:``) with the
+    one key the message names; ``None`` when no table is named."""
+    first = message.split("\n  - ")[1] if "\n  - " in message else message
+    names = [table.get("name") if isinstance(table, dict) and isinstance(table.get("name"), str) else None
+             for table in tables]
+    duplicate = re.search(r"duplicate element name '([^']*)'", first)
+    if duplicate:
+        twice = [i for i, name in enumerate(names) if name == duplicate.group(1)]
+        return where + (twice[1], "name") if len(twice) > 1 else None
+    named = []
+    for i, name in enumerate(names):
+        found = re.search(rf"'{re.escape(name)}'|(?<![\w.]){re.escape(name)}:", first) if name else None
+        if found:
+            named.append((found.start(), i))
+    if not named:
+        return None
+    index = min(named)[1]
+    return _Reader._named_key(where + (index,), tables[index], first)
 
 
 def _controller(reader: _Reader, table: Any, where: KeyPath, folder: Path) -> Any:
@@ -363,7 +393,8 @@ def load_scene(path: str | os.PathLike) -> Scene:
         try:
             system = with_feedback(plant, loops)
         except ModelError as exc:
-            raise reader.fail(("loops",), f"the loops cannot be closed on the system: {exc}") from exc
+            where = _named_table(loops_tables, ("loops",), str(exc)) or ("loops",)
+            raise reader.fail(where, f"the loops cannot be closed on the system: {exc}") from exc
     verb, arguments = _study(reader, study)
     if controller_tables:
         if verb != "simulate":

@@ -1,0 +1,99 @@
+"""Scene files edited by hand with mistakes the model's own checks find (a duplicate name, a hinge or joint naming a
+body that does not exist, a loop sensing an unknown signal): the error names the line and the key of the mistake,
+and ``ctmm run`` prints the whole reason on one line."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from ctmm.cli import main
+from ctmm.scene_files import SceneError, load_scene
+
+FILES = Path(__file__).resolve().parents[1] / "scenarios" / "files"
+
+CHAIN = """[system]
+kind = "chain"
+name = "two_mass"
+
+[[system.elements]]
+type = "Fixed"
+name = "wall"
+
+[[system.elements]]
+type = "SpringDamper"
+name = "k1"
+stiffness = 100.0
+damping = 0.5
+
+[[system.elements]]
+type = "Mass"
+name = "m1"
+mass = 1.0
+
+[[system.elements]]
+type = "Free"
+name = "tip"
+
+[[loops]]
+type = "Feedback"
+name = "pd"
+sensor = "m1.v"
+actuator = "m1"
+gain = 3.0
+
+[study]
+verb = "simulate"
+t_final = 0.01
+dt = 0.001
+"""
+
+
+def line_of(text: str, fragment: str, occurrence: int = 0) -> int:
+    """1-based line of the ``occurrence``-th line holding ``fragment`` (counted by hand, not by ctmm)."""
+    return [number for number, line in enumerate(text.splitlines(), start=1) if fragment in line][occurrence]
+
+
+def mistake(tmp_path: Path, text: str) -> SceneError:
+    scene = tmp_path / "scene.toml"
+    scene.write_text(text)
+    with pytest.raises(SceneError) as caught:
+        load_scene(scene)
+    return caught.value
+
+
+def test_duplicate_name_names_the_second_table(tmp_path):
+    text = CHAIN.replace('name = "tip"', 'name = "m1"')
+    error = mistake(tmp_path, text)
+    assert (error.line, error.key) == (line_of(text, 'name = "m1"', 1), "system.elements[3].name")
+    assert "duplicate element name 'm1'" in str(error)
+
+
+@pytest.mark.parametrize("file_name, old, new, key", [
+    ("branched_tree.toml", 'parent = "l1"', 'parent = "l9"', "parent"),
+    ("branched_tree.toml", 'child = "l2"', 'child = "l9"', "child"),
+    ("spatial_chain.toml", 'parent = "link1"', 'parent = "link9"', "parent"),
+])
+def test_unknown_parent_or_child_names_the_joint_and_its_key(tmp_path, file_name, old, new, key):
+    text = (FILES / file_name).read_text()
+    assert old in text
+    text = text.replace(old, new, 1)
+    error = mistake(tmp_path, text)
+    assert error.line == line_of(text, new) and error.key.endswith(f"].{key}")
+    assert "l9" in str(error) or "link9" in str(error)
+
+
+@pytest.mark.parametrize("old, new, key", [('sensor = "m1.v"', 'sensor = "m9.v"', "sensor"),
+                                           ('actuator = "m1"', 'actuator = "m9"', "actuator")])
+def test_loop_naming_an_unknown_signal_names_its_line(tmp_path, old, new, key):
+    text = CHAIN.replace(old, new)
+    error = mistake(tmp_path, text)
+    assert (error.line, error.key) == (line_of(text, new), f"loops[0].{key}")
+
+
+def test_command_line_prints_the_reason_of_a_model_check_on_one_line(tmp_path, capsys):
+    scene = tmp_path / "twice.toml"
+    scene.write_text(CHAIN.replace('name = "tip"', 'name = "m1"'))
+    assert main(["run", str(scene), "--output", str(tmp_path / "out")]) == 1
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and "duplicate element name 'm1'" in error
