@@ -202,6 +202,8 @@ class Scene:
         ``"controllers"``).
     output : dict
         The ``[output]`` table (``plot``, ``description``).
+    lines : dict
+        Line (1-based) of each key path of the file (``("output", "plot")``), for errors found when it runs.
     """
 
     path: Path
@@ -211,6 +213,7 @@ class Scene:
     verb: str
     arguments: dict
     output: dict
+    lines: dict = field(default_factory=dict, repr=False, compare=False)
 
     def run(self) -> Any:
         """Run the study: ``verb(system, **arguments)`` (a ``SimulationResult``, ``FrequencyResponse`` ...)."""
@@ -405,7 +408,22 @@ def load_scene(path: str | os.PathLike) -> Scene:
                               "[study] controllers, not both")
         arguments["controllers"] = [_controller(reader, table, ("controllers", i), source.parent)
                                     for i, table in enumerate(controller_tables)]
+    _check_output(reader, output, verb)
+    return Scene(source, source.stem, system, plant, verb, arguments, dict(output), lines)
+
+
+def _check_output(reader: _Reader, output: dict, verb: str) -> None:
+    """The keys of ``[output]``: ``plot`` a list of signal names of a ``simulate`` study (``ctmm run`` draws the other
+    verbs' results whole), ``description`` a string."""
     for key in output:
         if key not in OUTPUT_KEYS:
             raise reader.fail(("output", key), f"unknown key {key!r} of [output]; allowed keys: {', '.join(OUTPUT_KEYS)}")
-    return Scene(source, source.stem, system, plant, verb, arguments, dict(output))
+    plot = output.get("plot")
+    if plot is not None and verb != "simulate":
+        raise reader.fail(("output", "plot"), f"plot names the signals drawn for a simulate study; a {verb} study "
+                          f"takes no plot (leave it out), got {plot!r}")
+    if plot is not None and not (isinstance(plot, list) and all(isinstance(name, str) and name for name in plot)):
+        raise reader.fail(("output", "plot"), f"plot must be a list of signal names, e.g. [\"m1.x\"], got {plot!r}")
+    description = output.get("description")
+    if description is not None and not isinstance(description, str):
+        raise reader.fail(("output", "description"), f"description must be a string, got {description!r}")

@@ -132,6 +132,12 @@ def _plot(scene: Scene, result: Any, path: Path) -> bool:
             model = getattr(getattr(result, "system", None), "model", None)
             names = [n for n in getattr(model, "coordinates", ()) if n in result.signals()][:6] \
                 or result.time_signals()[:6]
+        for index, name in enumerate(names):       # a plot name the run does not have: its line and key
+            try:
+                result[name]
+            except ModelError as exc:
+                raise SceneError(f"[output] plot: {exc}", path=str(scene.path), line=scene.lines.get(("output", "plot")),
+                                 key=f"output.plot[{index}]") from exc
         figure = result.plot(*names)
     elif scene.verb in ("frequency_response", "stability_chart"):
         figure = result.plot()

@@ -97,3 +97,31 @@ def test_command_line_prints_the_reason_of_a_model_check_on_one_line(tmp_path, c
     assert main(["run", str(scene), "--output", str(tmp_path / "out")]) == 1
     error = capsys.readouterr().err.strip()
     assert len(error.splitlines()) == 1 and "duplicate element name 'm1'" in error
+
+
+PLOTTED = CHAIN + """
+[output]
+plot = ["m1.x"]
+description = "two masses"
+"""
+
+
+@pytest.mark.parametrize("old, new, key", [
+    ('plot = ["m1.x"]', 'plot = "m1.x"', "output.plot"),                       # a string, not a list of names
+    ('description = "two masses"', "description = 3", "output.description"),
+    ('verb = "simulate"\nt_final = 0.01\ndt = 0.001', 'verb = "natural_frequencies"', "output.plot"),   # not drawn
+])
+def test_output_table_of_the_wrong_form_is_refused_with_its_line(tmp_path, old, new, key):
+    text = PLOTTED.replace(old, new)
+    error = mistake(tmp_path, text)
+    assert (error.line, error.key) == (line_of(text, key.split(".")[1] + " ="), key)
+
+
+def test_plot_name_the_run_does_not_have_names_its_line(tmp_path, capsys):
+    text = PLOTTED.replace('plot = ["m1.x"]', 'plot = ["m1.x", "m9.x"]')
+    scene = tmp_path / "plotted.toml"
+    scene.write_text(text)
+    assert main(["run", str(scene), "--output", str(tmp_path / "out")]) == 1
+    error = capsys.readouterr().err.strip()
+    assert f"line {line_of(text, 'plot =')}, key 'output.plot[1]'" in error and "unknown signal 'm9.x'" in error
+    assert not any((tmp_path / "out").iterdir())                # nothing of the failed run is left
