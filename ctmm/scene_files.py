@@ -216,8 +216,24 @@ class Scene:
     lines: dict = field(default_factory=dict, repr=False, compare=False)
 
     def run(self) -> Any:
-        """Run the study: ``verb(system, **arguments)`` (a ``SimulationResult``, ``FrequencyResponse`` ...)."""
-        return schema.verb(self.verb).target(self.system, **self.arguments)
+        """Run the study: ``verb(system, **arguments)`` (a ``SimulationResult``, ``FrequencyResponse`` ...).
+
+        Raises
+        ------
+        SceneError
+            The verb refuses an argument of a loaded file (``dt = "1 ms"``, an unknown ``method``): its
+            :class:`~ctmm.errors.ModelError` with the line and key of the ``[study]`` key it names, else of ``[study]``.
+        """
+        try:
+            return schema.verb(self.verb).target(self.system, **self.arguments)
+        except SceneError:
+            raise
+        except ModelError as exc:
+            if not self.lines:
+                raise
+            where = _Reader._named_key(("study",), dict.fromkeys(self.arguments), str(exc))
+            line = self.lines.get(where, self.lines.get(("study",)))
+            raise SceneError(f"{self.verb}: {exc}", path=str(self.path), line=line, key=_dotted(where)) from exc
 
 
 def _check_table(reader: _Reader, data: dict, key: str, want: type, required: bool) -> Any:

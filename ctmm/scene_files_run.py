@@ -215,7 +215,7 @@ def run_scene_file(path: str | os.PathLike, output_dir: str | os.PathLike = "res
         arguments = quick_arguments(scene) if quick else scene.arguments
         started = time.perf_counter()
         result = scene.run() if not quick else Scene(scene.path, scene.name, scene.system, scene.plant, scene.verb,
-                                                     arguments, scene.output).run()
+                                                     arguments, scene.output, scene.lines).run()
         wall = time.perf_counter() - started
         figures = [f"{scene.name}.png"] if _plot(scene, result, staging / f"{scene.name}.png") else []
         provenance = {"scene_file": str(scene.path), "ctmm_version": __version__}

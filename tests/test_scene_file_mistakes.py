@@ -125,3 +125,29 @@ def test_plot_name_the_run_does_not_have_names_its_line(tmp_path, capsys):
     error = capsys.readouterr().err.strip()
     assert f"line {line_of(text, 'plot =')}, key 'output.plot[1]'" in error and "unknown signal 'm9.x'" in error
     assert not any((tmp_path / "out").iterdir())                # nothing of the failed run is left
+
+
+@pytest.mark.parametrize("old, new, key", [("dt = 0.001", 'dt = "1 ms"', "study.dt"),            # a unit typed in
+                                           ("t_final = 0.01", "t_final = -0.01", "study.t_final"),
+                                           ("dt = 0.001", 'dt = 0.001\nmethod = "rk5"', "study.method")])
+def test_study_argument_the_verb_refuses_names_its_line(tmp_path, capsys, old, new, key):
+    text = CHAIN.replace(old, new)
+    scene = tmp_path / "study.toml"
+    scene.write_text(text)
+    with pytest.raises(SceneError) as caught:
+        load_scene(scene).run()
+    assert (caught.value.line, caught.value.key) == (line_of(text, key.split(".")[1] + " ="), key)
+    assert main(["run", str(scene), "--quick", "--output", str(tmp_path / "out")]) == 1    # --quick alike
+    assert f"line {caught.value.line}, key '{key}'" in capsys.readouterr().err
+
+
+def test_study_argument_in_yaml_names_its_line(tmp_path):
+    text = "\n".join(["system:", "  kind: chain", "  name: one", "  elements:", "    - {type: Fixed, name: wall}",
+                      "    - {type: Spring, name: k, stiffness: 10.0}", "    - {type: Mass, name: m, mass: 1.0}",
+                      "    - {type: Free, name: tip}", "study:", "  verb: simulate", "  t_final: 0.01",
+                      "  dt: 1 ms", ""])
+    scene = tmp_path / "one.yaml"
+    scene.write_text(text)
+    with pytest.raises(SceneError) as caught:
+        load_scene(scene).run()
+    assert (caught.value.line, caught.value.key) == (line_of(text, "dt: 1 ms"), "study.dt")
