@@ -159,7 +159,7 @@ def _run(names: list[str], output: str, quick: bool, debug: bool, save: bool = F
             rows.append((name, "FAIL", f"cannot be imported: {error}", 0.0))
     missing_files = [n for n in names if n.lower().endswith(SCENE_SUFFIXES) and not Path(n).is_file()]
     for name in missing_files:
-        _error(f"scene file {name!r} does not exist")
+        _error(f"scene file {name!r} " + ("is not a file" if Path(name).exists() else "does not exist"))
     unknown = [n for n in names if n not in known and not n.lower().endswith(SCENE_SUFFIXES)]
     if missing_files and not unknown:
         return EXIT_USAGE

@@ -367,7 +367,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
     Raises
     ------
     SceneError
-        No such file, not TOML / YAML / JSON (the parser's line and column), PyYAML missing for a YAML file, or a
+        No such file, not UTF-8 text, not TOML / YAML / JSON (the parser's line and column), PyYAML missing for a YAML file, or a
         table, key or value that is not
         allowed: the message names the file, the line, the key and the allowed values; a
         constructor's own :class:`~ctmm.errors.ModelError` is passed on with the line and key of its table.
@@ -381,6 +381,10 @@ def load_scene(path: str | os.PathLike) -> Scene:
         text = source.read_text(encoding="utf-8")
     except OSError as exc:
         raise SceneError(f"cannot read the scene file: {exc.strerror or exc}", path=str(source)) from None
+    except UnicodeDecodeError as exc:
+        line = source.read_bytes()[:exc.start].count(b"\n") + 1
+        raise SceneError(f"a scene file is UTF-8 text, got the byte {exc.object[exc.start:exc.start + 1]!r} (save it "
+                         "as UTF-8)", path=str(source), line=line) from None
     try:
         data, lines = parse(text, syntax)
     except ValueError as exc:

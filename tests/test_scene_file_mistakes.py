@@ -151,3 +151,19 @@ def test_study_argument_in_yaml_names_its_line(tmp_path):
     with pytest.raises(SceneError) as caught:
         load_scene(scene).run()
     assert (caught.value.line, caught.value.key) == (line_of(text, "dt: 1 ms"), "study.dt")
+
+
+def test_a_file_that_is_not_utf8_is_a_scene_error_with_its_line(tmp_path, capsys):
+    scene = tmp_path / "latin1.toml"
+    scene.write_bytes(CHAIN.replace('name = "two_mass"', 'name = "m\u00e4sse"').encode("latin-1"))
+    with pytest.raises(SceneError, match="UTF-8") as caught:
+        load_scene(scene)
+    assert caught.value.line == line_of(CHAIN, 'name = "two_mass"')
+    assert main(["run", str(scene), "--output", str(tmp_path / "out")]) == 1
+    assert "invalid model or option" in capsys.readouterr().err
+
+
+def test_a_folder_named_like_a_scene_file_is_a_usage_error_saying_so(tmp_path, capsys):
+    (tmp_path / "folder.toml").mkdir()
+    assert main(["run", str(tmp_path / "folder.toml"), "--output", str(tmp_path / "out")]) == 2
+    assert "is not a file" in capsys.readouterr().err
