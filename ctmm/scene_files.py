@@ -122,7 +122,8 @@ class _Reader:
         try:
             return item.target(**arguments)
         except ModelError as exc:
-            raise self.fail(self._named_key(where, table, str(exc)), f"{item.name}: {exc}") from exc
+            named = self._named_key(where, {key: value for key, value in table.items() if key not in skip}, str(exc))
+            raise self.fail(named, f"{item.name}: {exc}") from exc
         except (TypeError, ValueError) as exc:
             raise self.fail(where, f"{item.name}: {type(exc).__name__}: {exc}") from exc
 
@@ -232,7 +233,10 @@ class Scene:
             if not self.lines:
                 raise
             where = _Reader._named_key(("study",), dict.fromkeys(self.arguments), str(exc))
-            line = self.lines.get(where, self.lines.get(("study",)))
+            controller = re.search(r"\b(input|output)s? of controller (\d+)", str(exc))
+            if where == ("study", "controllers") and where not in self.lines and controller:   # [[controllers]]
+                where = ("controllers", int(controller.group(2)), controller.group(1) + "s")
+            line = self.lines.get(where, self.lines.get(where[:2], self.lines.get(("study",))))
             raise SceneError(f"{self.verb}: {exc}", path=str(self.path), line=line, key=_dotted(where)) from exc
 
 

@@ -167,3 +167,47 @@ def test_a_folder_named_like_a_scene_file_is_a_usage_error_saying_so(tmp_path, c
     (tmp_path / "folder.toml").mkdir()
     assert main(["run", str(tmp_path / "folder.toml"), "--output", str(tmp_path / "out")]) == 2
     assert "is not a file" in capsys.readouterr().err
+
+
+CONTROLLED = CHAIN.split("[[loops]]")[0] + """[[controllers]]
+call = "ctmm.controllers:SaturatedPD"
+inputs = ["m1.x", "m1.v"]
+outputs = ["m1.force"]
+kp = 30.0
+kd = 3.0
+sample_time = 1e-3
+
+[study]
+verb = "simulate"
+t_final = 0.01
+dt = 0.001
+"""
+
+
+@pytest.mark.parametrize("old, new, key", [('inputs = ["m1.x", "m1.v"]', 'inputs = ["m9.x", "m1.v"]', "inputs"),
+                                           ('outputs = ["m1.force"]', 'outputs = ["m9.force"]', "outputs")])
+def test_controller_signal_the_system_does_not_have_names_its_line(tmp_path, old, new, key):
+    text = CONTROLLED.replace(old, new)
+    scene = tmp_path / "controlled.toml"
+    scene.write_text(text)
+    with pytest.raises(SceneError, match="m9") as caught:
+        load_scene(scene).run()
+    assert (caught.value.line, caught.value.key) == (line_of(text, new), f"controllers[0].{key}")
+
+
+def test_fmu_controller_option_the_fmu_refuses_names_its_key_not_the_path(tmp_path):
+    import shutil
+
+    if shutil.which("cc") is None:
+        pytest.skip("no C compiler")
+    pytest.importorskip("fmpy")
+    from ctmm.control.fmu import build_fmu
+    from ctmm.controllers import fmu_source
+
+    shutil.copy(build_fmu(fmu_source("pd_controller")), tmp_path / "pd.fmu")
+    text = CONTROLLED.replace('call = "ctmm.controllers:SaturatedPD"', 'fmu = "pd.fmu"').replace(
+        'inputs = ["m1.x", "m1.v"]', 'inputs = { y = "m1.x", ydot = "m1.v" }').replace(
+        'outputs = ["m1.force"]', 'outputs = { u = "m1.force" }').replace(
+        "kp = 30.0\nkd = 3.0\n", "").replace("sample_time = 1e-3", "sample_time = -1e-3")
+    error = mistake(tmp_path, text)
+    assert (error.line, error.key) == (line_of(text, "sample_time ="), "controllers[0].sample_time")
