@@ -467,8 +467,9 @@ def json_schema() -> dict[str, Any]:
                     "additionalProperties": {"$ref": "#/$defs/value"}},
                    {"type": "object", "properties": _python_reference("python"), "required": ["python"],
                     "additionalProperties": False}]
-    output = {"type": "object", "properties": {"plot": {"$ref": "#/$defs/value"},
-                                               "description": {"type": "string"}},
+    plot = {"type": "array", "items": {"type": "string", "minLength": 1},
+            "description": "signal names drawn for a simulate study"}
+    output = {"type": "object", "properties": {"plot": plot, "description": {"type": "string"}},
               "additionalProperties": False}
     return {
         "$schema": JSON_SCHEMA_DIALECT,
