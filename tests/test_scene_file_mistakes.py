@@ -211,3 +211,34 @@ def test_fmu_controller_option_the_fmu_refuses_names_its_key_not_the_path(tmp_pa
         "kp = 30.0\nkd = 3.0\n", "").replace("sample_time = 1e-3", "sample_time = -1e-3")
     error = mistake(tmp_path, text)
     assert (error.line, error.key) == (line_of(text, "sample_time ="), "controllers[0].sample_time")
+
+
+def test_quick_runs_a_tenth_of_the_time_from_t0(tmp_path):
+    from ctmm.results import load
+
+    scene = tmp_path / "late.toml"
+    scene.write_text(CHAIN.replace("t_final = 0.01", "t_final = 1.2\nt0 = 1.0"))
+    assert main(["run", str(scene), "--quick", "--save", "--output", str(tmp_path / "out")]) == 0
+    stored = load(tmp_path / "out" / "late.h5")
+    assert stored.time[0] == 1.0 and stored.time[-1] == pytest.approx(1.0 + 0.2 / 10, abs=1e-12)
+
+
+@pytest.mark.parametrize("old, new, key", [("t_final = 0.01", 't_final = "10 ms"', "study.t_final")])
+def test_quick_leaves_a_wrong_argument_to_the_verb_with_its_line(tmp_path, capsys, old, new, key):
+    text = CHAIN.replace(old, new)
+    scene = tmp_path / "quick.toml"
+    scene.write_text(text)
+    assert main(["run", str(scene), "--quick", "--output", str(tmp_path / "out")]) == 1
+    assert f"line {line_of(text, new)}, key '{key}'" in capsys.readouterr().err
+
+
+def test_quick_stability_chart_with_a_malformed_axis_names_its_line(tmp_path, capsys):
+    text = (Path(__file__).resolve().parents[1] / "scenarios" / "files" / "delay_oscillator.toml").read_text()
+    old = next(line for line in text.splitlines() if line.startswith("x = "))
+    text = text.replace(old, 'x = "m.x"')
+    scene = tmp_path / "chart.toml"
+    scene.write_text(text)
+    assert main(["run", str(scene), "--quick", "--output", str(tmp_path / "out")]) == 1
+    error = capsys.readouterr().err
+    line = line_of(text, 'x = "m.x"')
+    assert f"line {line}, key 'study.x'" in error and "IndexError" not in error
