@@ -232,12 +232,27 @@ class Scene:
         except ModelError as exc:
             if not self.lines:
                 raise
-            where = _Reader._named_key(("study",), dict.fromkeys(self.arguments), str(exc))
-            controller = re.search(r"\b(input|output)s? of controller (\d+)", str(exc))
-            if where == ("study", "controllers") and where not in self.lines and controller:   # [[controllers]]
-                where = ("controllers", int(controller.group(2)), controller.group(1) + "s")
-            line = self.lines.get(where, self.lines.get(where[:2], self.lines.get(("study",))))
+            where = _study_key(self.arguments, self.lines, str(exc))
+            inside = [number for path, number in self.lines.items() if path[:len(where)] == where]   # x0.m9 = ...
+            line = min(inside, default=None) or self.lines.get(where[:2], self.lines.get(("study",)))
             raise SceneError(f"{self.verb}: {exc}", path=str(self.path), line=line, key=_dotted(where)) from exc
+
+
+def _study_key(arguments: dict, lines: dict, message: str) -> KeyPath:
+    """The key of a verb's refusal: the ``[study]`` key ``message`` names, else the one whose value holds a name it
+    quotes (``x0 = { m9 = 0.1 }``: "unknown element 'm9'"); a controller's signal the ``[[controllers]]`` table's
+    ``inputs`` / ``outputs``; else ``[study]``."""
+    where = _Reader._named_key(("study",), dict.fromkeys(arguments), message)
+    controller = re.search(r"\b(input|output)s? of controller (\d+)", message)
+    if where == ("study", "controllers") and where not in lines and controller:      # [[controllers]] tables
+        return ("controllers", int(controller.group(2)), controller.group(1) + "s")
+    if where == ("study",):
+        quoted = set(re.findall(r"'([^']+)'", message))
+        for key, value in arguments.items():
+            names = value if isinstance(value, (dict, list, tuple)) else [value]
+            if quoted & {name for name in names if isinstance(name, str)}:
+                return ("study", key)
+    return where
 
 
 def _check_table(reader: _Reader, data: dict, key: str, want: type, required: bool) -> Any:

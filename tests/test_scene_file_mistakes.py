@@ -242,3 +242,12 @@ def test_quick_stability_chart_with_a_malformed_axis_names_its_line(tmp_path, ca
     error = capsys.readouterr().err
     line = line_of(text, 'x = "m.x"')
     assert f"line {line}, key 'study.x'" in error and "IndexError" not in error
+
+
+def test_start_value_of_an_unknown_element_names_the_x0_key(tmp_path):
+    text = CHAIN.replace("dt = 0.001", "dt = 0.001\nx0 = { m9 = 0.1 }")
+    scene = tmp_path / "start.toml"
+    scene.write_text(text)
+    with pytest.raises(SceneError, match="unknown element 'm9'") as caught:
+        load_scene(scene).run()
+    assert (caught.value.line, caught.value.key) == (line_of(text, "x0 ="), "study.x0")
