@@ -298,7 +298,11 @@ def _system(reader: _Reader, table: dict) -> Any:
     except SceneError as exc:
         if not isinstance(exc.__cause__, ModelError):
             raise
-        where = _named_table(elements, ("system", "elements"), str(exc.__cause__))
+        message = str(exc.__cause__)
+        groups = [(elements, ("system", "elements"))]
+        if isinstance(table.get("cuts"), list):              # a cut joint's own check first when it names one
+            groups.insert(0 if "cut joint" in message else 1, (table["cuts"], ("system", "cuts")))
+        where = next((found for tables, path in groups if (found := _named_table(tables, path, message))), None)
         if where is None:
             raise
         raise reader.fail(where, f"{kind}: {exc.__cause__}") from exc.__cause__

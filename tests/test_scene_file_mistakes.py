@@ -251,3 +251,16 @@ def test_start_value_of_an_unknown_element_names_the_x0_key(tmp_path):
     with pytest.raises(SceneError, match="unknown element 'm9'") as caught:
         load_scene(scene).run()
     assert (caught.value.line, caught.value.key) == (line_of(text, "x0 ="), "study.x0")
+
+
+@pytest.mark.parametrize("file_name, old, new", [
+    ("four_bar.toml", 'parent = "rocker.out"', 'parent = "rockr.out"'),
+    ("spatial_four_bar.toml", 'parent = "rocker", point = "tip", child = "coupler"',
+     'parent = "rockr", point = "tip", child = "coupler"'),
+])
+def test_cut_joint_naming_an_unknown_body_names_the_cuts_line(tmp_path, file_name, old, new):
+    text = (FILES / file_name).read_text()
+    assert old in text
+    text = text.replace(old, new, 1)
+    error = mistake(tmp_path, text)
+    assert error.line == line_of(text, new) and error.key == "system.cuts[0]" and "rockr" in str(error)
