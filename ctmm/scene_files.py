@@ -222,20 +222,25 @@ class Scene:
         Raises
         ------
         SceneError
-            The verb refuses an argument of a loaded file (``dt = "1 ms"``, an unknown ``method``): its
-            :class:`~ctmm.errors.ModelError` with the line and key of the ``[study]`` key it names, else of ``[study]``.
+            The verb refuses an argument of a loaded file (``dt = "1 ms"``, an unknown ``method``, an option
+            ``natural_frequencies`` does not take): its :class:`~ctmm.errors.ModelError` (or ``TypeError`` of an
+            unexpected keyword) with the line and key of the ``[study]`` key it names, else of ``[study]``.
         """
         try:
             return schema.verb(self.verb).target(self.system, **self.arguments)
         except SceneError:
             raise
-        except ModelError as exc:
-            if not self.lines:
+        except (ModelError, TypeError) as exc:
+            unexpected = re.search(r"unexpected keyword argument '([^']+)'", str(exc))
+            if not self.lines or (isinstance(exc, TypeError) and not (unexpected and unexpected.group(1) in
+                                                                      self.arguments)):
                 raise
-            where = _study_key(self.arguments, self.lines, str(exc))
+            where = ("study", unexpected.group(1)) if isinstance(exc, TypeError) else \
+                _study_key(self.arguments, self.lines, str(exc))
             inside = [number for path, number in self.lines.items() if path[:len(where)] == where]   # x0.m9 = ...
             line = min(inside, default=None) or self.lines.get(where[:2], self.lines.get(("study",)))
-            raise SceneError(f"{self.verb}: {exc}", path=str(self.path), line=line, key=_dotted(where)) from exc
+            text = f"unknown option {where[1]!r} ({exc})" if isinstance(exc, TypeError) else str(exc)
+            raise SceneError(f"{self.verb}: {text}", path=str(self.path), line=line, key=_dotted(where)) from exc
 
 
 def _study_key(arguments: dict, lines: dict, message: str) -> KeyPath:

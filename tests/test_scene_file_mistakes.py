@@ -264,3 +264,12 @@ def test_cut_joint_naming_an_unknown_body_names_the_cuts_line(tmp_path, file_nam
     text = text.replace(old, new, 1)
     error = mistake(tmp_path, text)
     assert error.line == line_of(text, new) and error.key == "system.cuts[0]" and "rockr" in str(error)
+
+
+def test_an_option_natural_frequencies_does_not_take_names_its_line(tmp_path, capsys):
+    text = CHAIN.split("[[loops]]")[0] + '[study]\nverb = "natural_frequencies"\nn_mode = 1\n'
+    scene = tmp_path / "modes.toml"
+    scene.write_text(text)
+    assert main(["run", str(scene), "--output", str(tmp_path / "out")]) == 1
+    error = capsys.readouterr().err
+    assert f"line {line_of(text, 'n_mode =')}, key 'study.n_mode'" in error and "unknown option 'n_mode'" in error
