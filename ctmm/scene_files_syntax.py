@@ -5,9 +5,10 @@ arrays as ``list``) and a map from key paths (``("system", "elements", 2, "mass"
 line numbers, so that :mod:`ctmm.scene_files` can name the line of a wrong key in either syntax.
 TOML parsers keep no line numbers, so a TOML text is scanned once more (:func:`key_lines`); a YAML
 text is composed into nodes, which carry their marks. YAML needs PyYAML (``pip install
-ctmm[scenes]``); a YAML null is a left-out key (as in TOML). A JSON text is read by :mod:`json` (its numbers
-as JSON states them, not as YAML 1.1 would) and its key lines are those of PyYAML's composition of the same
-text when PyYAML is installed (JSON is YAML flow syntax), else unknown (messages then name the key only).
+ctmm[scenes]``); a YAML or JSON null is a left-out key (as in TOML, :func:`_without_nulls`). A JSON text is
+read by :mod:`json` (its numbers as JSON states them, not as YAML 1.1 would) and its key lines are those of
+PyYAML's composition of the same text when PyYAML is installed (JSON is YAML flow syntax), else unknown (messages
+then name the key only).
 """
 from __future__ import annotations
 
@@ -184,7 +185,7 @@ def parse(text: str, syntax: str) -> tuple[Any, dict[KeyPath, int]]:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise ValueError(f"not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
-        return data, _json_key_lines(text)
+        return _without_nulls(data), _json_key_lines(text)
     yaml, loader_class = _yaml_loader()
     loader = loader_class(text)
     try:
@@ -195,7 +196,17 @@ def parse(text: str, syntax: str) -> tuple[Any, dict[KeyPath, int]]:
         raise ValueError(f"not valid YAML: {exc}".replace("\n", " ")) from None
     finally:
         loader.dispose()
-    return data, lines
+    return _without_nulls(data), lines
+
+
+def _without_nulls(data: Any) -> Any:
+    """``data`` with every ``null`` value of a mapping left out, as TOML, which has none, leaves the key out (a
+    ``null`` in a list is kept, for the constructor to refuse)."""
+    if isinstance(data, dict):
+        return {key: _without_nulls(value) for key, value in data.items() if value is not None}
+    if isinstance(data, list):
+        return [_without_nulls(value) for value in data]
+    return data
 
 
 def _json_key_lines(text: str) -> dict[KeyPath, int]:

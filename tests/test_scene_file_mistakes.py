@@ -273,3 +273,29 @@ def test_an_option_natural_frequencies_does_not_take_names_its_line(tmp_path, ca
     assert main(["run", str(scene), "--output", str(tmp_path / "out")]) == 1
     error = capsys.readouterr().err
     assert f"line {line_of(text, 'n_mode =')}, key 'study.n_mode'" in error and "unknown option 'n_mode'" in error
+
+
+YAML_CHAIN = "\n".join(["system:", "  kind: chain", "  name: one", "  elements:", "    - {type: Fixed, name: wall}",
+                        "    - {type: SpringDamper, name: k, stiffness: 10.0, damping: 0.5, free_length: null}",
+                        "    - {type: Mass, name: m, mass: 1.0}", "    - {type: Free, name: tip}",
+                        "study:", "  verb: simulate", "  t_final: 0.01", ""])
+
+
+def test_a_yaml_or_json_null_is_a_left_out_key(tmp_path):
+    """docs/scene_files.md: a null is the same as leaving the key out -- the parameter's default applies, and a
+    required key is missing."""
+    import json
+
+    from ctmm.elements import SpringDamper
+    from ctmm.scene_files_syntax import parse
+
+    scene = tmp_path / "nulls.yaml"
+    scene.write_text(YAML_CHAIN)
+    assert repr(load_scene(scene).system.elements[1]) == repr(SpringDamper("k", 10.0, 0.5))   # free_length: default
+    as_json = tmp_path / "nulls.json"
+    as_json.write_text(json.dumps({**parse(YAML_CHAIN.replace(", free_length: null", ""), "YAML")[0],
+                                   "output": None}))
+    assert repr(load_scene(as_json).system.elements[1]) == repr(SpringDamper("k", 10.0, 0.5))
+    scene.write_text(YAML_CHAIN.replace("mass: 1.0", "mass: null"))
+    with pytest.raises(SceneError, match=r"Mass needs the key\(s\) mass"):
+        load_scene(scene)
