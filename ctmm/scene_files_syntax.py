@@ -52,21 +52,32 @@ def _split_key(text: str) -> list[str]:
     return parts
 
 
-def _code(line: str) -> str:
-    """The line without its comment and with string contents blanked (brackets in strings do not count)."""
-    out, quote = [], ""
-    for char in line:
+def _code(line: str, quote: str = "") -> tuple[str, str]:
+    """The line without its comment and with string contents blanked, position for position (brackets, ``=`` and
+    ``#`` in strings do not count; an escaped quote does not end a basic string), and the triple-quoted (multi-line)
+    string still open at its end; ``quote`` is the one open at its start."""
+    out, i = [], 0
+    while i < len(line):
         if quote:
-            out.append(char if char == quote else "_")
-            quote = "" if char == quote else quote
-        elif char in "\"'":
-            quote = char
-            out.append(char)
-        elif char == "#":
+            if quote[0] == '"' and line[i] == "\\":                  # an escape in a basic string
+                out.append("_" * len(line[i:i + 2]))
+                i += 2
+            elif line.startswith(quote, i):
+                out.append(quote)
+                i, quote = i + len(quote), ""
+            else:
+                out.append("_")
+                i += 1
+        elif line[i] in "\"'":
+            quote = line[i] * 3 if line.startswith(line[i] * 3, i) else line[i]
+            out.append(quote)
+            i += len(quote)
+        elif line[i] == "#":
             break
         else:
-            out.append(char)
-    return "".join(out)
+            out.append(line[i])
+            i += 1
+    return "".join(out), quote if len(quote) == 3 else ""
 
 
 def key_lines(text: str) -> dict[KeyPath, int]:
@@ -78,9 +89,9 @@ def key_lines(text: str) -> dict[KeyPath, int]:
     lines: dict[KeyPath, int] = {}
     counts: dict[KeyPath, int] = {}
     table: KeyPath = ()
-    depth = 0
+    depth, quote = 0, ""
     for number, raw in enumerate(text.splitlines(), 1):
-        code = _code(raw)
+        code, quote = _code(raw, quote)                        # lines inside a multi-line string are blanked
         stripped = code.strip()
         if depth == 0 and stripped.startswith("["):
             array = stripped.startswith("[[")

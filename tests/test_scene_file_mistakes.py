@@ -299,3 +299,15 @@ def test_a_yaml_or_json_null_is_a_left_out_key(tmp_path):
     scene.write_text(YAML_CHAIN.replace("mass: 1.0", "mass: null"))
     with pytest.raises(SceneError, match=r"Mass needs the key\(s\) mass"):
         load_scene(scene)
+
+
+def test_lines_inside_a_multi_line_string_are_not_read_as_tables_or_keys(tmp_path):
+    """A triple-quoted description holding a line that looks like a table header (and an escaped quote): the keys
+    after it keep their own lines (it shifted every later [[system.elements]] by one table)."""
+    import tomllib
+
+    text = ('[output]\ndescription = """\nnotes: "quoted \\" [x = 1\n[[system.elements]]\nmass = 3\n"""\n\n'
+            + CHAIN.replace("mass = 1.0", "mas = 1.0"))
+    assert tomllib.loads(text)["output"]["description"].count("[[system.elements]]") == 1     # valid TOML
+    error = mistake(tmp_path, text)
+    assert (error.line, error.key) == (line_of(text, "mas = 1.0"), "system.elements[2].mas")
