@@ -248,8 +248,10 @@ def _study_key(arguments: dict, lines: dict, message: str) -> KeyPath:
     quotes (``x0 = { m9 = 0.1 }``: "unknown element 'm9'"); a controller's signal the ``[[controllers]]`` table's
     ``inputs`` / ``outputs``; else ``[study]``."""
     where = _Reader._named_key(("study",), dict.fromkeys(arguments), message)
-    controller = re.search(r"\b(input|output)s? of controller (\d+)", message)
+    controller = re.search(r"\b(input|output)s? of controller (\d+)|\bcontrollers\[(\d+)\]", message)
     if where == ("study", "controllers") and where not in lines and controller:      # [[controllers]] tables
+        if controller.group(3):
+            return ("controllers", int(controller.group(3)))
         return ("controllers", int(controller.group(2)), controller.group(1) + "s")
     if where == ("study",):
         quoted = set(re.findall(r"'([^']+)'", message))

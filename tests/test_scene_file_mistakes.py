@@ -311,3 +311,13 @@ def test_lines_inside_a_multi_line_string_are_not_read_as_tables_or_keys(tmp_pat
     assert tomllib.loads(text)["output"]["description"].count("[[system.elements]]") == 1     # valid TOML
     error = mistake(tmp_path, text)
     assert (error.line, error.key) == (line_of(text, "mas = 1.0"), "system.elements[2].mas")
+
+
+def test_an_object_that_is_no_controller_names_its_controllers_table(tmp_path):
+    text = CHAIN.split("[[loops]]")[0] + '[[controllers]]\npython = "math:pi"\n\n' + "[study]" + \
+        CHAIN.split("[study]")[1]
+    scene = tmp_path / "pi.toml"
+    scene.write_text(text)
+    with pytest.raises(SceneError, match="Controller protocol") as caught:
+        load_scene(scene).run()
+    assert (caught.value.line, caught.value.key) == (line_of(text, "[[controllers]]"), "controllers[0]")
