@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ctmm.cli import main
@@ -321,3 +322,24 @@ def test_an_object_that_is_no_controller_names_its_controllers_table(tmp_path):
     with pytest.raises(SceneError, match="Controller protocol") as caught:
         load_scene(scene).run()
     assert (caught.value.line, caught.value.key) == (line_of(text, "[[controllers]]"), "controllers[0]")
+
+
+@pytest.mark.parametrize("numerator, denominator, key", [("[]", "[1.0]", "numerator"),      # not a zero controller
+                                                         ("[1.0, true]", "[1.0, 2.0]", "numerator"),
+                                                         ("[1.0]", "[0.0, 0.0]", "denominator")])
+def test_a_transfer_function_gain_without_coefficients_is_refused(tmp_path, numerator, denominator, key):
+    gain = f'gain = {{ type = "TransferFunction", numerator = {numerator}, denominator = {denominator} }}'
+    text = CHAIN.replace("gain = 3.0", gain)
+    error = mistake(tmp_path, text)
+    assert (error.line, error.key) == (line_of(text, gain), f"loops[0].gain.{key}")
+
+
+def test_a_transfer_function_gain_is_python_controls(tmp_path):
+    import control
+
+    scene = tmp_path / "lead.toml"
+    scene.write_text(CHAIN.replace("gain = 3.0", 'gain = { type = "TransferFunction", numerator = [2.0, 1.0], '
+                                                 "denominator = [0.1, 1.0] }"))
+    gain = load_scene(scene).system.loops[0].gain
+    reference = control.tf([2.0, 1.0], [0.1, 1.0])
+    assert np.array_equal(gain.num[0][0], reference.num[0][0]) and np.array_equal(gain.den[0][0], reference.den[0][0])
