@@ -65,8 +65,9 @@ def summary_line(name: str, summary: dict) -> str:
 
 
 def failure_text(name: str, exc: BaseException) -> str:
-    """One line for a scenario that raised: scenario, what failed, and time/element if known."""
-    message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    """One line for a scenario that raised: scenario, what failed, and time/element if known (a message of
+    several lines, such as a model's list of problems, joined into the one line)."""
+    message = " ".join(line.strip() for line in str(exc).splitlines() if line.strip()) or type(exc).__name__
     if isinstance(exc, SimulationError):
         where = []
         if getattr(exc, "time", None) is not None:
@@ -158,7 +159,7 @@ def _run(names: list[str], output: str, quick: bool, debug: bool, save: bool = F
             rows.append((name, "FAIL", f"cannot be imported: {error}", 0.0))
     missing_files = [n for n in names if n.lower().endswith(SCENE_SUFFIXES) and not Path(n).is_file()]
     for name in missing_files:
-        _error(f"scene file {name!r} does not exist")
+        _error(f"scene file {name!r} " + ("is not a file" if Path(name).exists() else "does not exist"))
     unknown = [n for n in names if n not in known and not n.lower().endswith(SCENE_SUFFIXES)]
     if missing_files and not unknown:
         return EXIT_USAGE

@@ -79,9 +79,10 @@ def export_fmu(system: Any, path: str | os.PathLike, *, step: float, inputs: Seq
     fmi_version : {"2.0", "3.0"}
         FMI version of the co-simulation FMU (3.0: Float64 variables, the independent variable
         ``time``, no event mode).
-    q0, qdot0 : array_like, optional
-        Start values of the coordinates [rad, m, modal] and rates (default zeros; spatial: as ``x0``,
-        ``v0`` of ``ctmm.simulate``, default the neutral configuration at rest); the FMU exposes them
+    q0, qdot0 : array_like or mapping, optional
+        Start values of the coordinates [rad, m, modal] and rates, as ``x0``, ``v0`` of ``ctmm.simulate``
+        (``{coordinate: value}`` or every value in order; default zeros, spatial: the neutral configuration at
+        rest); the FMU exposes them
         as parameters ``"<coordinate>_start"`` and ``"<coordinate>_dot_start"`` (spatial:
         ``"<velocity>_start"``).
     references : mapping, optional

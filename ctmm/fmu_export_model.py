@@ -51,7 +51,7 @@ from .control.controlled_model import ControlledModel
 from .control.loop_rows import loop_unit
 from .errors import ModelError
 from .planar.guards import check_scheme
-from .planar.integrate import initial_coordinates
+from .planar.integrate import coordinate_values, initial_coordinates
 from .planar.model import REVOLUTE, PlanarModel
 from .planar.ports import PlanarPorts
 from .signals import SYMBOLIC_FIELDS
@@ -241,8 +241,8 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
     inputs, outputs, parameters : sequence of str or None
         Names to expose (module docstring); ``None``: every actuator (but beam station loads: those are inputs when
         named), every coordinate and rate, every exposable parameter.
-    q0, qdot0 : array_like or None
-        Start values [rad, m, modal] (default zeros).
+    q0, qdot0 : array_like, mapping or None
+        Start values [rad, m, modal] (default zeros; ``{coordinate: value}`` as ``x0`` of ``ctmm.simulate``).
     references : mapping, optional
         ``{loop: number or symbolic signal}`` of a controlled model (their numbers are parameters of the FMU).
     stability_check : {"warn", "error", "ignore"}
@@ -263,7 +263,7 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
     if reason:
         raise ModelError(f"export_fmu: system: {reason}")
     n = model.n_coordinates
-    q, v = initial_coordinates(model, np.zeros(n) if q0 is None else q0, np.zeros(n) if qdot0 is None else qdot0)
+    q, v = initial_coordinates(model, coordinate_values(model, "q0", q0), coordinate_values(model, "qdot0", qdot0))
     scene = CompiledScene(controlled if controlled is not None else model, cache_dir=cache_dir, rows=1,
                           dt=step if controlled is not None else None, references=references,
                           station_inputs=station_inputs(model, inputs))

@@ -92,12 +92,17 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     finite_element = unparametrised_bodies(model)
     rates = SpatialRates(model, fold=False, numbers="constants" if finite_element else "inputs")
     layout = rates.layout
-    components, offset = [], 0
+    ports = SpatialPorts(model)
+    joint_units = {(actuator.target, actuator.component): actuator.unit for actuator in ports.actuators.values()
+                   if actuator.kind == "joint"}       # a free joint's wrench: [0..2] N, [3..5] N m
+    components, input_units, offset = [], {}, 0
     for name, width in zip(rates.actuators, rates.widths):
-        components += [(name if width == 1 else f"{name}[{k}]", offset + k) for k in range(width)]
+        for k in range(width):
+            label = name if width == 1 else f"{name}[{k}]"
+            components.append((label, offset + k))
+            input_units[label] = joint_units.get((name, k), "")
         offset += width
     index = dict(components)
-    ports = SpatialPorts(model)
     body_actuators = [name for name, actuator in ports.actuators.items() if actuator.kind != "joint"]
     input_names = chosen_names("inputs", inputs, list(index) + body_actuators, list(index))
     applied = [name for name in input_names if name not in index]
@@ -128,9 +133,9 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     _, units = spatial_signals(model, np.zeros(1), start_values[None, :])
     input_variables = tuple(
         ExportedVariable(name, index[name], 0.0, ports.actuator_unit(name), f"body actuator {name}, held over a "
-                         f"communication step [{ports.actuator_unit(name)}]") if name in applied else
-        ExportedVariable(name, index[name], 0.0, "", f"joint input {name}, held over a communication step "
-                         "[N or N m]") for name in input_names)
+                         "communication step") if name in applied else     # the description gets the unit appended
+        ExportedVariable(name, index[name], 0.0, input_units[name], f"joint input {name}, held over a communication "
+                         "step") for name in input_names)
     output_variables = tuple(ExportedVariable(name, k, None, units.get(name, ""), f"signal {name}")
                              for k, name in enumerate(output_names))
     starts = tuple(ExportedVariable(f"{name}_start", k, float(start_values[k]), units.get(name, ""),

@@ -402,8 +402,8 @@ class SimulationResult:
         ----------
         path : str or os.PathLike
             File name ending with ``.h5`` (or ``.hdf5``, ``.hdf``) in an existing folder.
-        signals : sequence of str, optional
-            Signals written as named datasets (default: all). Signals not listed stay readable
+        signals : sequence of str or str, optional
+            Signals written as named datasets (default: all; a string is one name). Signals not listed stay readable
             after :func:`load` (from the raw arrays); loop signals and controller outputs, which are
             not in the raw arrays, are always written. Give a short list for large chains.
 
@@ -426,8 +426,8 @@ class SimulationResult:
         if signals is None:
             stored = available
         else:
-            for name in signals:
-                self[name]                   # raises UnknownNameError naming the available signals
+            signals = [signals] if isinstance(signals, str) else list(signals)   # one name as a string: that name
+            [self[name] for name in signals]    # raises UnknownNameError naming the available signals
             stored = list(dict.fromkeys([*signals, *(n for n in available if n not in signal_map)]))
         units = {n: self.unit(n) for n in dict.fromkeys([*signal_map, *available])}
         datasets: dict[str, tuple[np.ndarray, dict]] = {

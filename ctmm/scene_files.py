@@ -122,7 +122,8 @@ class _Reader:
         try:
             return item.target(**arguments)
         except ModelError as exc:
-            raise self.fail(self._named_key(where, table, str(exc)), f"{item.name}: {exc}") from exc
+            named = self._named_key(where, {key: value for key, value in table.items() if key not in skip}, str(exc))
+            raise self.fail(named, f"{item.name}: {exc}") from exc
         except (TypeError, ValueError) as exc:
             raise self.fail(where, f"{item.name}: {type(exc).__name__}: {exc}") from exc
 
@@ -202,6 +203,8 @@ class Scene:
         ``"controllers"``).
     output : dict
         The ``[output]`` table (``plot``, ``description``).
+    lines : dict
+        Line (1-based) of each key path of the file (``("output", "plot")``), for errors found when it runs.
     """
 
     path: Path
@@ -211,10 +214,52 @@ class Scene:
     verb: str
     arguments: dict
     output: dict
+    lines: dict = field(default_factory=dict, repr=False, compare=False)
 
     def run(self) -> Any:
-        """Run the study: ``verb(system, **arguments)`` (a ``SimulationResult``, ``FrequencyResponse`` ...)."""
-        return schema.verb(self.verb).target(self.system, **self.arguments)
+        """Run the study: ``verb(system, **arguments)`` (a ``SimulationResult``, ``FrequencyResponse`` ...).
+
+        Raises
+        ------
+        SceneError
+            The verb refuses an argument of a loaded file (``dt = "1 ms"``, an unknown ``method``, an option
+            ``natural_frequencies`` does not take): its :class:`~ctmm.errors.ModelError` (or ``TypeError`` of an
+            unexpected keyword) with the line and key of the ``[study]`` key it names, else of ``[study]``.
+        """
+        try:
+            return schema.verb(self.verb).target(self.system, **self.arguments)
+        except SceneError:
+            raise
+        except (ModelError, TypeError) as exc:
+            unexpected = re.search(r"unexpected keyword argument '([^']+)'", str(exc))
+            if not self.lines or (isinstance(exc, TypeError) and not (unexpected and unexpected.group(1) in
+                                                                      self.arguments)):
+                raise
+            where = ("study", unexpected.group(1)) if isinstance(exc, TypeError) else \
+                _study_key(self.arguments, self.lines, str(exc))
+            inside = [number for path, number in self.lines.items() if path[:len(where)] == where]   # x0.m9 = ...
+            line = min(inside, default=None) or self.lines.get(where[:2], self.lines.get(("study",)))
+            text = f"unknown option {where[1]!r} ({exc})" if isinstance(exc, TypeError) else str(exc)
+            raise SceneError(f"{self.verb}: {text}", path=str(self.path), line=line, key=_dotted(where)) from exc
+
+
+def _study_key(arguments: dict, lines: dict, message: str) -> KeyPath:
+    """The key of a verb's refusal: the ``[study]`` key ``message`` names, else the one whose value holds a name it
+    quotes (``x0 = { m9 = 0.1 }``: "unknown element 'm9'"); a controller's signal the ``[[controllers]]`` table's
+    ``inputs`` / ``outputs``; else ``[study]``."""
+    where = _Reader._named_key(("study",), dict.fromkeys(arguments), message)
+    controller = re.search(r"\b(input|output)s? of controller (\d+)|\bcontrollers\[(\d+)\]", message)
+    if where == ("study", "controllers") and where not in lines and controller:      # [[controllers]] tables
+        if controller.group(3):
+            return ("controllers", int(controller.group(3)))
+        return ("controllers", int(controller.group(2)), controller.group(1) + "s")
+    if where == ("study",):
+        quoted = set(re.findall(r"'([^']+)'", message))
+        for key, value in arguments.items():
+            names = value if isinstance(value, (dict, list, tuple)) else [value]
+            if quoted & {name for name in names if isinstance(name, str)}:
+                return ("study", key)
+    return where
 
 
 def _check_table(reader: _Reader, data: dict, key: str, want: type, required: bool) -> Any:
@@ -254,8 +299,42 @@ def _system(reader: _Reader, table: dict) -> Any:
                           f"'type' ({', '.join(reader.types)})")
     built = [part for i, element in enumerate(elements)
              for part in _element(reader, element, ("system", "elements", i), kind)]
-    return reader.call(schema.system_constructor(kind), table, ("system",), skip=("kind", "elements"),
-                       extra={"elements": built})
+    try:
+        return reader.call(schema.system_constructor(kind), table, ("system",), skip=("kind", "elements"),
+                           extra={"elements": built})
+    except SceneError as exc:
+        if not isinstance(exc.__cause__, ModelError):
+            raise
+        message = str(exc.__cause__)
+        groups = [(elements, ("system", "elements"))]
+        if isinstance(table.get("cuts"), list):              # a cut joint's own check first when it names one
+            groups.insert(0 if "cut joint" in message else 1, (table["cuts"], ("system", "cuts")))
+        where = next((found for tables, path in groups if (found := _named_table(tables, path, message))), None)
+        if where is None:
+            raise
+        raise reader.fail(where, f"{kind}: {exc.__cause__}") from exc.__cause__
+
+
+def _named_table(tables: list, where: KeyPath, message: str) -> KeyPath | None:
+    """The table (and key) of ``tables`` a model's own check names in the first problem of ``message``: the second
+    table of a duplicate name, else the table whose ``name`` the message names first (``'h2'`` or ``h2:``) with the
+    one key the message names; ``None`` when no table is named."""
+    first = message.split("\n  - ")[1] if "\n  - " in message else message
+    names = [table.get("name") if isinstance(table, dict) and isinstance(table.get("name"), str) else None
+             for table in tables]
+    duplicate = re.search(r"duplicate element name '([^']*)'", first)
+    if duplicate:
+        twice = [i for i, name in enumerate(names) if name == duplicate.group(1)]
+        return where + (twice[1], "name") if len(twice) > 1 else None
+    named = []
+    for i, name in enumerate(names):
+        found = re.search(rf"'{re.escape(name)}'|(?<![\w.]){re.escape(name)}:", first) if name else None
+        if found:
+            named.append((found.start(), i))
+    if not named:
+        return None
+    index = min(named)[1]
+    return _Reader._named_key(where + (index,), tables[index], first)
 
 
 def _controller(reader: _Reader, table: Any, where: KeyPath, folder: Path) -> Any:
@@ -318,7 +397,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
     Raises
     ------
     SceneError
-        No such file, not TOML / YAML / JSON (the parser's line and column), PyYAML missing for a YAML file, or a
+        No such file, not UTF-8 text, not TOML / YAML / JSON (the parser's line and column), PyYAML missing for a YAML file, or a
         table, key or value that is not
         allowed: the message names the file, the line, the key and the allowed values; a
         constructor's own :class:`~ctmm.errors.ModelError` is passed on with the line and key of its table.
@@ -332,6 +411,10 @@ def load_scene(path: str | os.PathLike) -> Scene:
         text = source.read_text(encoding="utf-8")
     except OSError as exc:
         raise SceneError(f"cannot read the scene file: {exc.strerror or exc}", path=str(source)) from None
+    except UnicodeDecodeError as exc:
+        line = source.read_bytes()[:exc.start].count(b"\n") + 1
+        raise SceneError(f"a scene file is UTF-8 text, got the byte {exc.object[exc.start:exc.start + 1]!r} (save it "
+                         "as UTF-8)", path=str(source), line=line) from None
     try:
         data, lines = parse(text, syntax)
     except ValueError as exc:
@@ -363,7 +446,8 @@ def load_scene(path: str | os.PathLike) -> Scene:
         try:
             system = with_feedback(plant, loops)
         except ModelError as exc:
-            raise reader.fail(("loops",), f"the loops cannot be closed on the system: {exc}") from exc
+            where = _named_table(loops_tables, ("loops",), str(exc)) or ("loops",)
+            raise reader.fail(where, f"the loops cannot be closed on the system: {exc}") from exc
     verb, arguments = _study(reader, study)
     if controller_tables:
         if verb != "simulate":
@@ -374,7 +458,22 @@ def load_scene(path: str | os.PathLike) -> Scene:
                               "[study] controllers, not both")
         arguments["controllers"] = [_controller(reader, table, ("controllers", i), source.parent)
                                     for i, table in enumerate(controller_tables)]
+    _check_output(reader, output, verb)
+    return Scene(source, source.stem, system, plant, verb, arguments, dict(output), lines)
+
+
+def _check_output(reader: _Reader, output: dict, verb: str) -> None:
+    """The keys of ``[output]``: ``plot`` a list of signal names of a ``simulate`` study (``ctmm run`` draws the other
+    verbs' results whole), ``description`` a string."""
     for key in output:
         if key not in OUTPUT_KEYS:
             raise reader.fail(("output", key), f"unknown key {key!r} of [output]; allowed keys: {', '.join(OUTPUT_KEYS)}")
-    return Scene(source, source.stem, system, plant, verb, arguments, dict(output))
+    plot = output.get("plot")
+    if plot is not None and verb != "simulate":
+        raise reader.fail(("output", "plot"), f"plot names the signals drawn for a simulate study; a {verb} study "
+                          f"takes no plot (leave it out), got {plot!r}")
+    if plot is not None and not (isinstance(plot, list) and all(isinstance(name, str) and name for name in plot)):
+        raise reader.fail(("output", "plot"), f"plot must be a list of signal names, e.g. [\"m1.x\"], got {plot!r}")
+    description = output.get("description")
+    if description is not None and not isinstance(description, str):
+        raise reader.fail(("output", "description"), f"description must be a string, got {description!r}")

@@ -34,8 +34,8 @@ from .version import __version__
 __all__ = ["write_results", "run_scene_file", "quick_arguments", "QUICK_FACTOR"]
 
 QUICK_FACTOR = 10
-"""``--quick`` on a scene file: ``t_final`` divided by it (simulate), every ``QUICK_FACTOR``-th frequency
-(frequency_response) and grid value (stability_chart)."""
+"""``--quick`` on a scene file: the simulated time ``t_final - t0`` divided by it (simulate), every
+``QUICK_FACTOR``-th frequency (frequency_response) and grid value (stability_chart)."""
 
 
 def _label(text: str) -> str:
@@ -109,17 +109,19 @@ def write_results(results: Mapping[str, Any], folder: str | os.PathLike, name: s
 
 
 def quick_arguments(scene: Scene) -> dict:
-    """The study arguments of ``--quick`` (see :data:`QUICK_FACTOR`)."""
+    """The study arguments of ``--quick`` (see :data:`QUICK_FACTOR`); arguments not of the verb's form are left as
+    they are, for the verb to name (with their line, :meth:`Scene.run`)."""
     arguments = dict(scene.arguments)
-    if scene.verb == "simulate":
-        arguments["t_final"] = float(arguments["t_final"]) / QUICK_FACTOR
+    times = (arguments.get("t0", 0.0), arguments.get("t_final"))
+    if scene.verb == "simulate" and all(isinstance(t, (int, float)) and not isinstance(t, bool) for t in times):
+        arguments["t_final"] = times[0] + (times[1] - times[0]) / QUICK_FACTOR     # a tenth of the run from t0
     elif scene.verb == "frequency_response" and np.ndim(arguments.get("omega")) == 1:
         arguments["omega"] = np.asarray(arguments["omega"])[::QUICK_FACTOR]
     elif scene.verb == "stability_chart":
         for axis in ("x", "y"):
-            spec = list(arguments[axis])
-            spec[1] = np.asarray(spec[1])[::QUICK_FACTOR]
-            arguments[axis] = spec
+            spec = arguments.get(axis)
+            if isinstance(spec, (list, tuple)) and len(spec) >= 2 and np.ndim(spec[1]) == 1:
+                arguments[axis] = [*spec[:1], np.asarray(spec[1])[::QUICK_FACTOR], *spec[2:]]
     return arguments
 
 
@@ -132,6 +134,12 @@ def _plot(scene: Scene, result: Any, path: Path) -> bool:
             model = getattr(getattr(result, "system", None), "model", None)
             names = [n for n in getattr(model, "coordinates", ()) if n in result.signals()][:6] \
                 or result.time_signals()[:6]
+        for index, name in enumerate(names):       # a plot name the run does not have: its line and key
+            try:
+                result[name]
+            except ModelError as exc:
+                raise SceneError(f"[output] plot: {exc}", path=str(scene.path), line=scene.lines.get(("output", "plot")),
+                                 key=f"output.plot[{index}]") from exc
         figure = result.plot(*names)
     elif scene.verb in ("frequency_response", "stability_chart"):
         figure = result.plot()
@@ -209,7 +217,7 @@ def run_scene_file(path: str | os.PathLike, output_dir: str | os.PathLike = "res
         arguments = quick_arguments(scene) if quick else scene.arguments
         started = time.perf_counter()
         result = scene.run() if not quick else Scene(scene.path, scene.name, scene.system, scene.plant, scene.verb,
-                                                     arguments, scene.output).run()
+                                                     arguments, scene.output, scene.lines).run()
         wall = time.perf_counter() - started
         figures = [f"{scene.name}.png"] if _plot(scene, result, staging / f"{scene.name}.png") else []
         provenance = {"scene_file": str(scene.path), "ctmm_version": __version__}

@@ -312,10 +312,27 @@ def loop_types() -> dict[str, Constructor]:
 
 
 def transfer_function(numerator: list[float], denominator: list[float]) -> Any:
-    """A python-control transfer function ``numerator(s) / denominator(s)`` (coefficients, highest power first)."""
+    """A python-control transfer function ``numerator(s) / denominator(s)`` (coefficients, highest power first).
+
+    Raises
+    ------
+    ModelError
+        A coefficient list that is empty (``numerator = []`` is not a zero controller), not of finite real numbers,
+        or a denominator of zeros only.
+    """
     import control
 
-    return control.tf(numerator, denominator)
+    from . import validation
+    from .errors import ModelError
+
+    coefficients = {}
+    for label, value in (("numerator", numerator), ("denominator", denominator)):
+        coefficients[label] = validation.finite_array(label, value, ndim=1)
+        if coefficients[label].size == 0:
+            raise ModelError(f"{label} must list at least one coefficient (highest power of s first), got {value!r}")
+    if not np.any(coefficients["denominator"]):
+        raise ModelError(f"denominator must have a non-zero coefficient, got {denominator!r}")
+    return control.tf(coefficients["numerator"], coefficients["denominator"])
 
 
 def value_types() -> dict[str, Constructor]:
@@ -467,8 +484,9 @@ def json_schema() -> dict[str, Any]:
                     "additionalProperties": {"$ref": "#/$defs/value"}},
                    {"type": "object", "properties": _python_reference("python"), "required": ["python"],
                     "additionalProperties": False}]
-    output = {"type": "object", "properties": {"plot": {"$ref": "#/$defs/value"},
-                                               "description": {"type": "string"}},
+    plot = {"type": "array", "items": {"type": "string", "minLength": 1},
+            "description": "signal names drawn for a simulate study"}
+    output = {"type": "object", "properties": {"plot": plot, "description": {"type": "string"}},
               "additionalProperties": False}
     return {
         "$schema": JSON_SCHEMA_DIALECT,

@@ -5,9 +5,10 @@ arrays as ``list``) and a map from key paths (``("system", "elements", 2, "mass"
 line numbers, so that :mod:`ctmm.scene_files` can name the line of a wrong key in either syntax.
 TOML parsers keep no line numbers, so a TOML text is scanned once more (:func:`key_lines`); a YAML
 text is composed into nodes, which carry their marks. YAML needs PyYAML (``pip install
-ctmm[scenes]``); a YAML null is a left-out key (as in TOML). A JSON text is read by :mod:`json` (its numbers
-as JSON states them, not as YAML 1.1 would) and its key lines are those of PyYAML's composition of the same
-text when PyYAML is installed (JSON is YAML flow syntax), else unknown (messages then name the key only).
+ctmm[scenes]``); a YAML or JSON null is a left-out key (as in TOML, :func:`_without_nulls`). A JSON text is
+read by :mod:`json` (its numbers as JSON states them, not as YAML 1.1 would) and its key lines are those of
+PyYAML's composition of the same text when PyYAML is installed (JSON is YAML flow syntax), else unknown (messages
+then name the key only).
 """
 from __future__ import annotations
 
@@ -51,21 +52,32 @@ def _split_key(text: str) -> list[str]:
     return parts
 
 
-def _code(line: str) -> str:
-    """The line without its comment and with string contents blanked (brackets in strings do not count)."""
-    out, quote = [], ""
-    for char in line:
+def _code(line: str, quote: str = "") -> tuple[str, str]:
+    """The line without its comment and with string contents blanked, position for position (brackets, ``=`` and
+    ``#`` in strings do not count; an escaped quote does not end a basic string), and the triple-quoted (multi-line)
+    string still open at its end; ``quote`` is the one open at its start."""
+    out, i = [], 0
+    while i < len(line):
         if quote:
-            out.append(char if char == quote else "_")
-            quote = "" if char == quote else quote
-        elif char in "\"'":
-            quote = char
-            out.append(char)
-        elif char == "#":
+            if quote[0] == '"' and line[i] == "\\":                  # an escape in a basic string
+                out.append("_" * len(line[i:i + 2]))
+                i += 2
+            elif line.startswith(quote, i):
+                out.append(quote)
+                i, quote = i + len(quote), ""
+            else:
+                out.append("_")
+                i += 1
+        elif line[i] in "\"'":
+            quote = line[i] * 3 if line.startswith(line[i] * 3, i) else line[i]
+            out.append(quote)
+            i += len(quote)
+        elif line[i] == "#":
             break
         else:
-            out.append(char)
-    return "".join(out)
+            out.append(line[i])
+            i += 1
+    return "".join(out), quote if len(quote) == 3 else ""
 
 
 def key_lines(text: str) -> dict[KeyPath, int]:
@@ -77,9 +89,9 @@ def key_lines(text: str) -> dict[KeyPath, int]:
     lines: dict[KeyPath, int] = {}
     counts: dict[KeyPath, int] = {}
     table: KeyPath = ()
-    depth = 0
+    depth, quote = 0, ""
     for number, raw in enumerate(text.splitlines(), 1):
-        code = _code(raw)
+        code, quote = _code(raw, quote)                        # lines inside a multi-line string are blanked
         stripped = code.strip()
         if depth == 0 and stripped.startswith("["):
             array = stripped.startswith("[[")
@@ -184,7 +196,7 @@ def parse(text: str, syntax: str) -> tuple[Any, dict[KeyPath, int]]:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise ValueError(f"not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
-        return data, _json_key_lines(text)
+        return _without_nulls(data), _json_key_lines(text)
     yaml, loader_class = _yaml_loader()
     loader = loader_class(text)
     try:
@@ -195,7 +207,17 @@ def parse(text: str, syntax: str) -> tuple[Any, dict[KeyPath, int]]:
         raise ValueError(f"not valid YAML: {exc}".replace("\n", " ")) from None
     finally:
         loader.dispose()
-    return data, lines
+    return _without_nulls(data), lines
+
+
+def _without_nulls(data: Any) -> Any:
+    """``data`` with every ``null`` value of a mapping left out, as TOML, which has none, leaves the key out (a
+    ``null`` in a list is kept, for the constructor to refuse)."""
+    if isinstance(data, dict):
+        return {key: _without_nulls(value) for key, value in data.items() if value is not None}
+    if isinstance(data, list):
+        return [_without_nulls(value) for value in data]
+    return data
 
 
 def _json_key_lines(text: str) -> dict[KeyPath, int]:

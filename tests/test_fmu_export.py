@@ -307,7 +307,7 @@ def test_an_unchanged_export_comes_from_the_cache(arm_fmu, tmp_path):
     ({"fmi_version": "1.0"}, ["fmi_version", "'1.0'"]),
     ({"path": "my-arm.fmu"}, ["path", "my-arm.fmu'", "identifier"]),
     ({"path": "arm.zip"}, ["path", "arm.zip'", ".fmu"]),
-    ({"q0": [0.1]}, ["q0", "(2,)"]),
+    ({"q0": [0.1]}, ["q0", "length 2", "[0.1]"]),
     ({"references": {"pd": 1.0}}, ["references", "ControlledModel"]),
     ({"stop_time": -1.0}, ["stop_time", "-1.0"]),
 ])
@@ -441,3 +441,18 @@ def assert_peak_round_off(fmu_values, native, name):
     """Round-off of the signal's own peak (a beam's modal coordinates and deflections are ~1e-3)."""
     scale = float(np.max(np.abs(native)))
     assert scale > 0.0 and np.max(np.abs(np.asarray(fmu_values) - native)) < 1e-13 * scale, name
+
+
+def test_start_values_by_coordinate_name_as_in_simulate(tmp_path):
+    """``q0`` / ``qdot0`` as ``{coordinate: value}`` (the others 0), as ``x0`` / ``v0`` of ``ctmm.simulate`` and of a
+    spatial export: the FMU's start parameters are those numbers and its run is ``simulate``'s from that start."""
+    path = ctmm.export_fmu(arm(), tmp_path / "named.fmu", step=H, q0={"rod.theta": 0.4}, qdot0={"fore.theta": 0.5})
+    starts = {v.name: float(v.start) for v in fmpy.read_model_description(str(path)).modelVariables
+              if v.name.endswith("_start")}
+    assert starts == {"rod.theta_start": 0.4, "fore.theta_start": 0.0, "rod.theta_dot_start": 0.0,
+                      "fore.theta_dot_start": 0.5}
+    out = fmpy.simulate_fmu(str(path), stop_time=0.1, output_interval=INTERVAL)
+    native = ctmm.simulate(arm(), 0.1, H, x0=[0.4, 0.0], v0=[0.0, 0.5], method="rk4", compiled=False)
+    assert_round_off(out["rod.theta"], native["rod.theta"][at(native, out["time"])], "rod.theta")
+    with pytest.raises(ModelError, match="rod.thet"):
+        ctmm.export_fmu(arm(), tmp_path / "bad.fmu", step=H, q0={"rod.thet": 0.4})

@@ -62,3 +62,25 @@ def test_an_unknown_input_lists_the_body_actuators(tmp_path):
                                          r".*slider.force_x"):
         ctmm.export_fmu(slider_and_wheel(), tmp_path / "x.fmu", step=1e-3, inputs=["slider.force_w"])
     assert not (tmp_path / "x.fmu").exists()
+
+
+def test_joint_inputs_carry_the_unit_of_each_component(tmp_path):
+    """A free body pushed through its joint's wrench (zero gravity): component 0 is a force, ``x = F t^2 / (2 m)``
+    [m]; component 3 a moment, ``omega_x = M t / I_xx`` [rad/s] (closed form); so their units are N and N m, and a
+    revolute hub's torque N m."""
+    model = sp.SpatialModel("free_and_hub", [
+        sp.SpatialBody("block", MASS, np.diag([0.1, 0.2, 0.3])),
+        sp.SpatialBody("wheel", 0.5, np.diag([0.02, 0.03, INERTIA_ZZ])),
+        sp.Free(name="float", parent=None, child="block", actuated=True),
+        sp.Revolute(name="hub", parent=None, child="wheel", axis=(0.0, 0.0, 1.0), actuated=True)],
+        gravity=(0.0, 0.0, 0.0))
+    path = ctmm.export_fmu(model, tmp_path / "free.fmu", step=1e-3, outputs=["block.position_x", "block.omega_x"])
+    declared = {v.name: v.unit for v in fmpy.read_model_description(str(path)).modelVariables
+                if v.causality == "input"}
+    assert declared == {**{f"float.wrench[{k}]": "N" for k in range(3)},
+                        **{f"float.wrench[{k}]": "N m" for k in range(3, 6)}, "hub.torque": "N m"}
+    out = fmpy.simulate_fmu(str(path), stop_time=0.2, output_interval=0.05,
+                            start_values={"float.wrench[0]": FORCE, "float.wrench[3]": TORQUE})
+    t = out["time"]
+    np.testing.assert_allclose(out["block.position_x"], FORCE * t ** 2 / (2 * MASS), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(out["block.omega_x"], TORQUE * t / 0.1, rtol=1e-12, atol=1e-15)

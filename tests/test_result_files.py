@@ -232,6 +232,9 @@ def test_short_signal_list_keeps_every_signal_readable(controlled_result, tmp_pa
     assert again.system.description["elements"][2]["parameters"]["mass"] == 1.0
     with pytest.raises(ModelError, match="unknown signal 'm9.x'"):
         controlled_result.save(tmp_path / "bad.h5", signals=["m9.x"])
+    one = controlled_result.save(tmp_path / "one.h5", signals="m2.x")     # one name as a string, not its letters
+    with h5py.File(one, "r") as f:
+        assert sorted(f["signals"]) == ["m2.x", "pd.u", "pd.y"]
 
 
 def test_special_floats_round_trip_bit_for_bit(controlled_result, tmp_path):

@@ -122,6 +122,8 @@ def test_every_shipped_scene_file_is_valid(schema):
     ('verb = "natural_frequencies"\nn_modes = 1', 'verb = "simulate"', "simulate needs the key(s) t_final"),
     ('mass = 1.0', 'mass = 1.0\nforce = { type = "Harmonc", amplitude = 1.0, omega = 2.0 }', "unknown value type"),
     ('mass = 1.0', 'mass = 1.0\nforce = { python = "ctmm.signals:Harmonic", x = 1 }', "takes no other key"),
+    ('verb = "natural_frequencies"\nn_modes = 1', 'verb = "simulate"\nt_final = 0.1\n\n[output]\nplot = "m.x"',
+     "plot must be a list of signal names"),
 ])
 def test_mistakes_the_loader_refuses_are_invalid_under_the_schema(tmp_path, schema, old, new, words):
     assert old in CHAIN
