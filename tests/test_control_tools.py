@@ -148,6 +148,27 @@ def test_to_frd_from_response_and_system():
         to_frd(frf, OMEGA)
 
 
+def test_frd_export_of_an_unsorted_grid_is_ascending_for_python_control():
+    """python-control's FRD needs ascending, distinct frequencies (its margins spline the data):
+    a response on a shuffled grid with a repeated point exports as the sorted grid, and its margins
+    are those of the hand-written L = (kp + kd s) / (m s^2 + c s + k) (before: a ValueError)."""
+    m, c, k, kp, kd = 2.0, 0.3, 50.0, 30.0, 4.0
+    plant = ctmm.Chain("sdof", [Fixed("w"), SpringDamper("k", k, c), Mass("m", m), Free("e")])
+    system = ControlledChain(plant, [Feedback("pd", [("m.x", kp), ("m.v", kd)], "m", gain=1.0)])
+    grid = np.logspace(-1, 3, 2000)
+    shuffled = np.concatenate([np.random.default_rng(0).permutation(grid), grid[[5, 700]]])
+    frd = loop_transfer_function(system, "pd", shuffled).to_control()
+    np.testing.assert_array_equal(frd.omega, grid)
+    hand = (kp + kd * S) / (m * S ** 2 + c * S + k)
+    np.testing.assert_allclose(np.asarray(frd.frdata).reshape(-1), np.squeeze(hand(1j * grid)), rtol=1e-12)
+    np.testing.assert_allclose(control.stability_margins(frd)[:2],
+                               control.stability_margins(control.frd(hand, grid))[:2], rtol=1e-9)
+    exported = to_frd(plant, shuffled, inputs="m.force", outputs="m.x")
+    np.testing.assert_array_equal(exported.omega, grid)
+    np.testing.assert_allclose(np.asarray(exported.frdata).reshape(-1), 1 / (k - m * grid ** 2 + 1j * c * grid),
+                               rtol=1e-12)
+
+
 def test_closed_loop_response_wraps_frequency_response():
     setup = seed_setup([(2, "displacement", 0, 5.0, 0.05, None, False)])
     a = closed_loop_response(setup.system, OMEGA, "m1.force", ["m0.x", "m2.x"])
