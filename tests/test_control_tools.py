@@ -257,6 +257,21 @@ def test_margins_of_first_order_lag_with_delay_closed_form():
     assert pm_pc == pytest.approx(math.degrees(pm), rel=1e-4) and wgc_pc == pytest.approx(wgc, rel=1e-4)
 
 
+def test_margins_of_data_on_an_unsorted_grid_closed_form():
+    """Margins of L given as data on a shuffled grid with a repeated frequency are the closed form of
+    the first-order lag with delay (before: ValueError 'Invalid inputs.' from the spline)."""
+    m, c, k, tau = 2.0, 1.0, 5.0, 0.1
+    grid = np.logspace(-2, 2, 1500)
+    shuffled = np.concatenate([np.random.default_rng(1).permutation(grid), grid[[10, 900]]])
+    approx = margins(loop_transfer_function(first_order_lag(m, c, k, tau), "speed", shuffled))
+    wgc = math.sqrt(k * k - c * c) / m
+    pm = math.pi - math.atan(m * wgc / c) - wgc * tau
+    wpc = brentq(lambda w: math.atan(m * w / c) + w * tau - math.pi, 1e-3, 1e3)
+    assert approx.phase_margin == pytest.approx(math.degrees(pm), rel=1e-6)
+    assert approx.gain_margin == pytest.approx(math.hypot(c, m * wpc) / k, rel=1e-6)
+    assert approx.delay_margin == pytest.approx(pm / wgc, rel=1e-6)
+
+
 def test_margins_without_crossovers_and_errors():
     system = first_order_lag(k=0.5)               # |L| < 1 everywhere: no gain crossover
     result = margins(system, "speed", np.logspace(-2, 2, 200))

@@ -343,6 +343,8 @@ def margins(source: Any, loop: str | None = None, omega: Any = None, *, fields: 
         else:
             raise ModelError(f"margins needs a ControlledChain, ControlledModel, FrequencyResponse or FRD, "
                              f"got {source!r:.80}")
+        w, first = np.unique(w, return_index=True)      # the spline below needs ascending, distinct frequencies
+        L = L[first]
         frd_smooth = control.frd(L, w, smooth=True)
 
         def evaluate(x: float) -> complex:
