@@ -178,8 +178,8 @@ def close_model_loops(A: np.ndarray, loops: Sequence[Any], *, inputs: Any, outpu
     if not labels_in and len(labels_out) == 1:
         raise ModelError(f"linearize: inputs={inputs!r} leaves the linearisation of {name!r} with no input and "
                          f"the one output {req + [lp.name for lp in delayed]}, a state space python-control cannot "
-                         "hold (its D would be 1 x 0); name an input (an actuator or '<loop>.reference'), a "
-                         "second output, or leave inputs=None")
+                         "hold (its D would be 1 x 0); name an input (an actuator or '<loop>.reference') or a "
+                         "second output" + ("" if inputs is None else ", or leave inputs=None"))
     ss = control.ss(A_cl, B_cl, C_cl, D_cl, inputs=labels_in, outputs=labels_out,
                     states=[control_name(x) for x in all_states], name=control_name(name))
     return LinearizedSystem(ss, tuple(DelayedLoop(lp.name, lp.gain, lp.delay) for lp in delayed), point)
