@@ -272,6 +272,19 @@ def test_margins_of_data_on_an_unsorted_grid_closed_form():
     assert approx.delay_margin == pytest.approx(pm / wgc, rel=1e-6)
 
 
+def test_gain_margin_at_zero_frequency_of_a_negative_gain():
+    """u = +40 x on m s^2 + c s + k: L(0) = -40 / k lies on the negative real axis, so the gain margin is
+    k / 40 at omega = 0 (a real root through s = 0), as python-control's margin of the hand-written L says
+    (before: inf, the certified search dropped phase crossovers at omega = 0)."""
+    m, c, k, g = 2.0, 0.3, 50.0, -40.0
+    plant = ctmm.Chain("sdof", [Fixed("w"), SpringDamper("k", k, c), Mass("m", m), Free("e")])
+    result = margins(ControlledChain(plant, [Feedback("c", "m.x", "m", gain=g)]), "c", np.logspace(-2, 3, 500))
+    gm, _, wpc, _ = control.margin(g / (m * S ** 2 + c * S + k))
+    assert result.gain_margin == pytest.approx(k / -g, rel=1e-12) and gm == pytest.approx(k / -g, rel=1e-12)
+    assert result.phase_crossover_frequency == 0.0 == wpc
+    assert any("phase crossover at 0 rad/s" in note for note in result.notes)
+
+
 def test_margins_without_crossovers_and_errors():
     system = first_order_lag(k=0.5)               # |L| < 1 everywhere: no gain crossover
     result = margins(system, "speed", np.logspace(-2, 2, 200))

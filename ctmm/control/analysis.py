@@ -222,7 +222,8 @@ class Margins:
 
 def _certified_crossovers(system: ControlledChain | ControlledModel, loop: str) -> tuple[list, list, Any, list]:
     """Gain and phase crossovers [rad/s] of a controlled chain's (or linearised model's) loop from the certified
-    contour search of :mod:`ctmm.stability` (phase crossovers: gain factors in (0, 100])."""
+    contour search of :mod:`ctmm.stability` (phase crossovers: gain factors in (0, 100], at omega = 0 too: a real
+    root through s = 0, as python-control's margins count it)."""
     from ..stability import gain_crossovers, gain_margin
 
     try:
@@ -230,7 +231,7 @@ def _certified_crossovers(system: ControlledChain | ControlledModel, loop: str) 
         factors = gain_margin(system, loop)
     except ModelError as exc:
         return [], [], None, [f"crossovers not certified (only the grid was searched): {exc}"]
-    pc = [w for f, w in zip(factors.crossing_factors, factors.crossing_frequencies) if f > 0 and w > 0]
+    pc = [w for f, w in zip(factors.crossing_factors, factors.crossing_frequencies) if f > 0 and w >= 0]
     return [float(x) for x in gc], pc, certificate, []
 
 
