@@ -27,7 +27,8 @@ from ctmm.control.design import PlantCache
 from ctmm.elements import Damper, Elastic, Fixed, Free, GroundedSpring, Mass, PrescribedDisplacement, Spring, SpringDamper
 from ctmm.errors import ModelError, UnknownNameError
 from ctmm.interop import assemble_matrices, control_name, to_frd, to_state_space
-from ctmm.reference.delay_chain import closed_loop_roots
+from ctmm.reference import chain as reference_chain
+from ctmm.reference.delay_chain import closed_loop_frequency_response, closed_loop_roots
 
 from test_controlled_frequency import OMEGA, build, random_setup, relative_error
 
@@ -384,3 +385,21 @@ def test_plant_cache_errors():
         cache.closed_loop(gains={"loop0": math.nan})
     with pytest.raises(UnknownNameError, match="available"):
         PlantCache(setup.system, OMEGA, inputs="m1.force", outputs="loop0.z")
+
+
+def test_plant_cache_refuses_where_the_superposition_loses_the_digits():
+    """An undamped plant closed by two delayed loops, at its natural frequencies: the cached plant responses are
+    ~1e13 there and the closed loop their difference -- the algebra was 3 % and 0.6 % off the dense closed loop, silently;
+    now those frequencies are refused by name, and the others still equal the dense closed loop."""
+    setup = build([1.9, 1.3], [480.0, 660.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0], start="fixed", end="free",
+                  loops=[(1, "displacement", 1, 6.9, 0.036, None, False), (0, "displacement", 1, -2.7, 0.045, None,
+                                                                             False)])
+    M, _, K = reference_chain.assemble(setup.chain)
+    natural = np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(M, K)).real))
+    omega = np.array([3.0, natural[0], 20.0, natural[1]])
+    cache = PlantCache(setup.system, omega, inputs="m0.force", outputs="m1.x")
+    with pytest.raises(ModelError, match=r"at omega = \[11\.\d+, 31\.\d+\] rad/s .*ctmm.frequency_response"):
+        cache.closed_loop()
+    regular = PlantCache(setup.system, omega[[0, 2]], inputs="m0.force", outputs="m1.x").closed_loop()
+    dense = closed_loop_frequency_response(setup.chain, setup.global_loops, omega[[0, 2]], 0, 1, "displacement")
+    np.testing.assert_allclose(regular("m1.x"), dense, rtol=1e-10)

@@ -39,6 +39,11 @@ from .loops import ControlledChain, Feedback
 __all__ = ["PlantCache"]
 
 
+AMPLIFICATION_LIMIT = 1e8
+"""Largest accepted ratio (sum of the superposed moduli) / (modulus of the sum) in :meth:`PlantCache.closed_loop`:
+beyond it more than half of the digits would be lost (refused)."""
+
+
 class PlantCache:
     """Open-loop plant data of a controlled chain on a frequency grid, for fast loop design.
 
@@ -198,7 +203,10 @@ class PlantCache:
         Raises
         ------
         ModelError
-            If ``I + K P_yu`` is singular at a grid frequency (a closed-loop pole on the axis).
+            If ``I + K P_yu`` is singular at a grid frequency (a closed-loop pole on the axis), or where an output
+            is the difference of plant responses more than ``AMPLIFICATION_LIMIT`` (1e8) times larger than it (at
+            or next to a resonance of a lightly damped plant that the loops tame: the algebra would lose those
+            digits).
         """
         K = self.loop_gains(gains, delays)
         nw, nl = K.shape
@@ -218,6 +226,19 @@ class PlantCache:
                              "the imaginary axis there") from None
         Y = self.P_yw + self.P_yu @ U                          # sensed values
         Z = self.P_zw + self.P_zu @ U
+        with np.errstate(all="ignore"):                       # digits lost by the superposition (amplification)
+            terms = (np.abs(self.P_zw) + np.abs(self.P_zu) @ np.abs(U),
+                     np.abs(self.P_yw) + np.abs(self.P_yu) @ np.abs(U))
+            lost = [np.where(size > 0, size / np.abs(value), 1.0).max(axis=(1, 2))
+                    for size, value in zip(terms, (Z, Y))]
+        lost = np.maximum(*lost) if any(kind == "y" for kind, _ in self._z_kind) else lost[0]
+        if np.any(lost > AMPLIFICATION_LIMIT):
+            bad = self.omega[lost > AMPLIFICATION_LIMIT]
+            raise ModelError(f"PlantCache.closed_loop: at omega = {np.round(bad[:5], 6).tolist()} rad/s the closed "
+                             f"loop is a difference of plant responses up to {lost.max():.3g} times larger than it (a "
+                             "plant resonance the loops tame) and would lose as many digits; there use "
+                             "ctmm.frequency_response of the controlled chain with these gains, or leave those "
+                             "frequencies out of the grid")
         out = np.empty((len(self.outputs), len(self.inputs), nw), dtype=complex)
         for o, (kind, value) in enumerate(self._z_kind):
             if kind == "plant":
