@@ -286,6 +286,23 @@ def test_gain_margin_at_zero_frequency_of_a_negative_gain():
     assert any("phase crossover at 0 rad/s" in note for note in result.notes)
 
 
+def test_margins_on_a_grid_through_an_undamped_plant_pole():
+    """Undamped m s^2 + k under a delayed PD, the grid holding sqrt(k/m) exactly: that grid point (L unbounded) is
+    left out and noted; the margins are the closed form: |kp + i kd w| = |k - m w^2| at w_gc, PM = pi + arg L
+    (before: SingularSystemError 'batch entries [...]')."""
+    m, k, kp, kd, tau = 2.0, 50.0, 30.0, 4.0, 0.01
+    plant = ctmm.Chain("undamped", [Fixed("w"), Spring("k", k), Mass("m", m), Free("e")])
+    system = ControlledChain(plant, [Feedback("pd", [("m.x", kp), ("m.v", kd)], "m", gain=1.0, delay=tau)])
+    pole = math.sqrt(k / m)
+    result = margins(system, "pd", np.sort(np.append(np.logspace(-1, 3, 300), pole)))
+    wgc = brentq(lambda w: abs(kp + 1j * kd * w) - abs(k - m * w * w), 5.5, 20.0)
+    phase = math.pi + np.angle((kp + 1j * kd * wgc) * np.exp(-1j * wgc * tau) / (k - m * wgc * wgc))
+    assert result.gain_crossover_frequency == pytest.approx(wgc, rel=1e-12)
+    assert result.phase_margin == pytest.approx(math.degrees(phase), rel=1e-10)
+    assert result.delay_margin == pytest.approx(phase / wgc, rel=1e-10)
+    assert any(f"[{pole}] rad/s at poles of the plant left out" in note for note in result.notes)
+
+
 def test_margins_without_crossovers_and_errors():
     system = first_order_lag(k=0.5)               # |L| < 1 everywhere: no gain crossover
     result = margins(system, "speed", np.logspace(-2, 2, 200))
