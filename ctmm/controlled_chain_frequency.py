@@ -18,8 +18,10 @@ Certificates.  The superposition can lose digits where the plant alone responds 
 (a lightly damped plant resonance tamed by the loop: ``x_0`` and ``u_k x_k`` nearly cancel).  Every returned state
 and sensed value ``q`` carries the amplification ``A = (|q_0| + sum_k |u_k q_k|) / |q|``; where
 ``A > AMPLIFICATION_LIMIT`` (or a plant solve or the loop system is singular) those frequencies are answered by
-the extended numpy recursion instead, so the answer equals the numpy recursion's to about ``AMPLIFICATION_LIMIT``
-times round-off.  Without a C compiler, for plants that are not lumped chains and for saturated loops the extended
+the certified means of the closed loop on a small circle around them (:func:`ctmm.entire_values.circle_mean_logs`;
+its points lie off the plant's pole, where the superposition holds): the extended numpy recursion divides by the
+plant's pivots too and loses as many digits there (at an undamped plant's natural frequency 0.2-40 % off the dense
+closed loop); it answers only where no circle mean is certified (a closed-loop pole next to ``s``).  Without a C compiler, for plants that are not lumped chains and for saturated loops the extended
 numpy recursion answers everything (:func:`applies` is False); element coefficients that are not floats put the
 plant solves on the numpy scalar recursion (the same superposition and certificate, ``kernel = "numpy"``).
 """
@@ -31,13 +33,17 @@ import numpy as np
 
 from .assembly import ChainSolution
 from .chain_assembly import compiled_log_det_applies, is_lumped, solve
+from .entire_values import circle_mean_logs
 from .errors import SingularSystemError
 
 __all__ = ["AMPLIFICATION_LIMIT", "applies", "closed_loop_solve", "compiled_log_det", "log_determinant"]
 
 AMPLIFICATION_LIMIT = 1e4
-"""Largest accepted ratio (sum of the superposed moduli) / (modulus of the sum); above it the numpy recursion
-answers that frequency (the superposition would lose more than about 4 digits)."""
+"""Largest accepted ratio (sum of the superposed moduli) / (modulus of the sum); above it that frequency is answered
+by certified circle means (the superposition would lose more than about 4 digits; :func:`_repaired`)."""
+ROUND_OFF = 1e-13
+"""A component of a point's state below this times its largest component on a whole circle of :func:`_repaired` is
+round-off of an exact zero (a free end's force), taken as zero: its noise has no certified mean."""
 
 
 def applies(system: Any) -> bool:
@@ -105,7 +111,7 @@ def _loop_matrix(system: Any, s: np.ndarray, unit: list, sensed: list) -> tuple[
 
 
 def closed_loop_solve(system: Any, s: np.ndarray, amplitudes: Mapping[Any, Mapping[str, Any]],
-                      points: Sequence[int]) -> ChainSolution:
+                      points: Sequence[int], *, repair: bool = True) -> ChainSolution:
     """States of ``system`` (a controlled chain, :func:`applies`) at plant connection ``points`` with the loops
     closed, in the extended layout of :meth:`~ctmm.control.loops.ControlledChain.assemble_frequency`
     (plant components, then ``y_k``, accumulator of loop ``k``).
@@ -119,12 +125,15 @@ def closed_loop_solve(system: Any, s: np.ndarray, amplitudes: Mapping[Any, Mappi
         ``{plant element position: {input name: phasor}, loop name: {"reference": phasor}}``.
     points : sequence of int
         Plant connection points to return, in that order.
+    repair : bool
+        Answer the frequencies that fail the certificate by :func:`_repaired` (certified circle means); False:
+        by the extended numpy recursion directly (the evaluations on the circles).
 
     Returns
     -------
     ChainSolution
         ``states`` ``(len(points), B, d + 2 nl)``; ``kernel = "compiled"`` (``"compiled/numpy"`` when some
-        frequencies failed the certificate and the extended numpy recursion answered them).
+        frequencies failed the certificate and were answered by :func:`_repaired`).
 
     Raises
     ------
@@ -188,9 +197,33 @@ def closed_loop_solve(system: Any, s: np.ndarray, amplitudes: Mapping[Any, Mappi
         else "numpy"
     if not good.all():
         bad = np.flatnonzero(~good)
-        states[:, bad] = _extended_numpy(system, s[bad], amplitudes, rows)
+        states[:, bad] = (_repaired if repair else _extended_numpy)(system, s[bad], amplitudes, rows)
         kernel = f"{kernel}/numpy" if good.any() and kernel != "numpy" else "numpy"
     return ChainSolution(states, np.zeros(B, dtype=complex), tuple(rows), kernel=kernel)
+
+
+def _repaired(system: Any, s: np.ndarray, amplitudes: Mapping, rows: Sequence[int]) -> np.ndarray:
+    """States at ``rows`` where the superposition is not certified: at or next to a pole of the plant, where the
+    plant's Riccati pivot vanishes.  The extended numpy recursion divides by the same pivots (they are the plant's)
+    and loses as many digits there (at an undamped plant's natural frequency, closed by a loop: 0.2-40 % off the
+    dense closed loop), but the closed loop is analytic around such an ``s``: its states are the certified means
+    on a small circle around it (:func:`ctmm.entire_values.circle_mean_logs`, whose points lie off the pole).  The
+    extended numpy recursion answers where no circle mean is certified (a closed-loop pole next to ``s``)."""
+    n = system.plant.layout.size + 2 * len(system.loops)
+    states = np.empty((len(rows), s.size, n), dtype=complex)
+    for k, point in enumerate(s):
+        def logs(circle: np.ndarray) -> np.ndarray:
+            values = closed_loop_solve(system, circle, amplitudes, rows, repair=False).states
+            size = np.abs(values).max(axis=1, keepdims=True)       # a component that is round-off of its
+            values = np.where(size > ROUND_OFF * size.max(axis=2, keepdims=True), values, 0.0)   # point: zero
+            with np.errstate(divide="ignore"):
+                return np.log(np.moveaxis(values, 1, -1).reshape(-1, circle.size))
+        try:
+            states[:, k] = np.exp(circle_mean_logs(logs, point, label="the closed loop's states")).reshape(
+                len(rows), n)
+        except SingularSystemError:
+            states[:, k] = _extended_numpy(system, s[k:k + 1], amplitudes, rows)[:, 0]
+    return states
 
 
 def _extended_numpy(system: Any, s: np.ndarray, amplitudes: Mapping, rows: Sequence[int]) -> np.ndarray:

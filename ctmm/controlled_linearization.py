@@ -32,7 +32,8 @@ import numpy as np
 import scipy.linalg
 
 from . import validation
-from .errors import ModelError
+from .entire_values import circle_mean_logs
+from .errors import ModelError, SingularSystemError
 from .linearized import DelayedLoop, LinearizedSystem, control_name
 from .loop_closure import close_loops
 from .loop_phasors import close_loops as close_phasor_loops, loop_signal
@@ -178,8 +179,8 @@ def close_model_loops(A: np.ndarray, loops: Sequence[Any], *, inputs: Any, outpu
     if not labels_in and len(labels_out) == 1:
         raise ModelError(f"linearize: inputs={inputs!r} leaves the linearisation of {name!r} with no input and "
                          f"the one output {req + [lp.name for lp in delayed]}, a state space python-control cannot "
-                         "hold (its D would be 1 x 0); name an input (an actuator or '<loop>.reference'), a "
-                         "second output, or leave inputs=None")
+                         "hold (its D would be 1 x 0); name an input (an actuator or '<loop>.reference') or a "
+                         "second output" + ("" if inputs is None else ", or leave inputs=None"))
     ss = control.ss(A_cl, B_cl, C_cl, D_cl, inputs=labels_in, outputs=labels_out,
                     states=[control_name(x) for x in all_states], name=control_name(name))
     return LinearizedSystem(ss, tuple(DelayedLoop(lp.name, lp.gain, lp.delay) for lp in delayed), point)
@@ -220,13 +221,39 @@ def delayed_loop_response(linearize: Callable[[list[str], list[str]], Linearized
     lin = linearize(lin_in, lin_out)
     ss = lin.state_space
     A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
-    G = C @ resolvent(A, B, s, name) + D                         # (frequencies, lin_out + delayed y, lin_in + delayed u)
     n_i, n_o, n_d = len(lin_in), len(lin_out), len(delayed)
-    blocks = (G[:, :n_o, :n_i], G[:, :n_o, n_i:], G[:, n_o:, :n_i], G[:, n_o:, n_i:])
-    K = np.zeros((s.size, n_d, n_d), dtype=complex)
-    for j, loop in enumerate(lin.delays):
-        K[:, j, j] = controller_response(loop.gain, s) * np.exp(-s * loop.delay)
-    return close_phasor_loops(blocks, K, inputs, outputs, lin_in, lin_out, delayed), lin
+
+    def closed(z: np.ndarray) -> np.ndarray:
+        G = C @ resolvent(A, B, z, name) + D             # (frequencies, lin_out + delayed y, lin_in + delayed u)
+        blocks = (G[:, :n_o, :n_i], G[:, :n_o, n_i:], G[:, n_o:, :n_i], G[:, n_o:, n_i:])
+        K = np.zeros((z.size, n_d, n_d), dtype=complex)
+        for j, loop in enumerate(lin.delays):
+            K[:, j, j] = controller_response(loop.gain, z) * np.exp(-z * loop.delay)
+        return close_phasor_loops(blocks, K, inputs, outputs, lin_in, lin_out, delayed)
+    try:
+        return closed(np.asarray(s)), lin
+    except FrequencyAtPoleError:
+        if not delayed:
+            raise
+    return np.stack([_closed_at_pole(closed, z) for z in np.asarray(s)], axis=-1), lin
+
+
+def _closed_at_pole(closed: Callable[[np.ndarray], np.ndarray], s: complex) -> np.ndarray:
+    """``closed(s)`` (``[i_out, i_in]``), or where the plant's resolvent refuses ``s`` (a pole of the plant with the
+    delayed loops open, which the loops may move: the closed loop is then analytic around ``s``) its certified mean
+    on a small circle around ``s`` (:func:`ctmm.entire_values.circle_mean_logs`); the refusal stands where no mean
+    is certified (a pole of the closed loop too)."""
+    try:
+        return closed(np.array([s]))[:, :, 0]
+    except FrequencyAtPoleError as refused:
+        def logs(circle: np.ndarray) -> np.ndarray:
+            with np.errstate(divide="ignore"):
+                return np.log(closed(circle).reshape(-1, circle.size))
+        try:
+            shape = closed(np.array([s * (1.0 + 1e-3)])).shape[:2]
+            return np.exp(circle_mean_logs(logs, s, label="the closed loop's response")).reshape(shape)
+        except (SingularSystemError, FrequencyAtPoleError):
+            raise refused from None
 
 
 class FrequencyAtPoleError(ModelError):

@@ -45,7 +45,8 @@ def to_frd(source: Any, omega: Any = None, *, inputs: str | Sequence[str] | None
     Returns
     -------
     control.FrequencyResponseData
-        SISO when one input and one output, else MIMO; labels from :func:`control_name`.
+        SISO when one input and one output, else MIMO; labels from :func:`control_name`; ``omega``
+        ascending, a repeated frequency kept once (:meth:`FrequencyResponse.to_control`).
 
     Examples
     --------
@@ -56,8 +57,6 @@ def to_frd(source: Any, omega: Any = None, *, inputs: str | Sequence[str] | None
     >>> complex(frd(5j))  # doctest: +ELLIPSIS
     (0.0133...+0j)
     """
-    import control
-
     if isinstance(source, FrequencyResponse):
         if omega is not None or inputs is not None or outputs is not None:
             raise ModelError("to_frd(FrequencyResponse) takes no omega/inputs/outputs; "
@@ -71,10 +70,7 @@ def to_frd(source: Any, omega: Any = None, *, inputs: str | Sequence[str] | None
         from .frequency import frequency_response
 
         response = frequency_response(source, omega, input=inputs, output=outputs)
-    data = response.response if response.response.shape[:2] != (1, 1) else response.response[0, 0]
-    return control.frd(data, response.omega, inputs=[control_name(n) for n in response.inputs],
-                       outputs=[control_name(n) for n in response.outputs],
-                       name=control_name(response.system_name) if response.system_name else None)
+    return response.to_control()        # ascending, distinct frequencies, as python-control's FRD needs
 
 
 # -------------------------------------------------------------------------- state space

@@ -53,8 +53,7 @@ class FrequencyResponse:
     info : dict
         Provenance (method, solver, wall time [s], error figures, ...), saved with :meth:`save`.
     units : dict
-        Units of inputs/outputs by name; names not given here get the unit of
-        :func:`ctmm.signal_units.signal_unit` (from the name alone).
+        Units of inputs/outputs by name; others get :func:`ctmm.signal_units.signal_unit` of the name.
     """
 
     omega: np.ndarray
@@ -111,13 +110,14 @@ class FrequencyResponse:
     def to_control(self):
         """Convert to :class:`control.FrequencyResponseData` (MIMO if several inputs/outputs).
 
-        python-control does not allow ``.`` in signal names: ``"m1.force"`` becomes ``"m1_force"``.
+        python-control does not allow ``.`` in signal names: ``"m1.force"`` becomes ``"m1_force"``.  Its FRD
+        needs ascending, distinct frequencies [rad/s]: ``omega`` is sorted and a repeated one kept once.
         """
         import control
 
-        data = self.response if self.response.shape[:2] != (1, 1) else self.response[0, 0]
+        omega, first = np.unique(self.omega, return_index=True)
         clean = lambda names: [n.replace(".", "_") for n in names]  # noqa: E731
-        return control.frd(data, self.omega, inputs=clean(self.inputs), outputs=clean(self.outputs),
+        return control.frd(self.response[..., first], omega, inputs=clean(self.inputs), outputs=clean(self.outputs),
                            name=(self.system_name or "ctmm").replace(".", "_").replace("+", "_"))
 
     def plot(self, ax=None, *, output: str | None = None, input: str | None = None,  # noqa: A002
@@ -125,8 +125,8 @@ class FrequencyResponse:
         """Bode plot (magnitude in dB and phase in degrees) of one or all pairs.
 
         The magnitude axis is labelled ``magnitude [dB re 1 <output unit>/<input unit>]`` when all
-        plotted pairs share a unit (each legend entry carries its unit otherwise), the phase axis
-        ``phase [deg]``, the frequency axis ``angular frequency [rad/s]``. Returns the figure.
+        plotted pairs share a unit (each legend entry carries its unit otherwise), the phase axis ``phase [deg]``,
+        the frequency axis ``angular frequency [rad/s]``. Returns the figure.
         """
         pairs = [(o, i) for o in self.outputs for i in self.inputs]
         if output is not None or input is not None:

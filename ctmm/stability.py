@@ -349,7 +349,7 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
                 omegas.append(float(wc))
                 directions.append(int(d))
     else:
-        limit = float(delay_max) if delay_max is not None else max(tau_now, 1.0)
+        tau0, limit = omega_c, float(delay_max) if delay_max is not None else max(tau_now, 1.0)
     order = np.argsort(taus)
     taus = [float(taus[i]) for i in order]
     omegas = [omegas[i] for i in order]
@@ -367,11 +367,11 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
         running = new
     if start is not None:
         intervals.append((start, limit))
-    stable = n_now == 0
-    later = [t for t in taus if t > tau_now]
-    margin = (later[0] - tau_now if later else math.inf) if stable else 0.0
-    return DelayMargin(critical_delay=taus[0] if taus else math.inf,
-                       critical_frequency=omegas[0] if omegas else math.nan, delay=tau_now,
+    stable, period, first = n_now == 0, 2 * math.pi / omega_c, int(np.argmin(tau0)) if tau0.size else None
+    later = tau0 + period * np.maximum(0.0, np.floor((tau_now - tau0) / period) + 1.0)   # listed or beyond delay_max
+    margin = (float(np.min(later)) - tau_now if later.size else math.inf) if stable else 0.0
+    return DelayMargin(critical_delay=float(tau0[first]) if first is not None else math.inf,
+                       critical_frequency=float(omega_c[first]) if first is not None else math.nan, delay=tau_now,
                        margin=margin, stable=stable, unstable_roots_at_zero_delay=n0,
                        crossing_delays=tuple(taus), crossing_frequencies=tuple(omegas),
                        crossing_directions=tuple(directions), stable_intervals=tuple(intervals),

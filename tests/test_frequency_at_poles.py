@@ -72,3 +72,37 @@ def test_margins_of_a_loop_around_an_undamped_pole_equal_the_closed_form(grid):
     undelayed = margins(system(0.0), "pd", grid)                            # Im L = kd w / (K - J w^2) != 0
     assert undelayed.phase_crossovers == () and undelayed.gain_margin == np.inf
     assert KP > 0 and KD > 0
+
+
+def test_closed_loop_at_a_pole_of_the_plant_equals_the_lagrange_closed_loop():
+    """Two links on motor and elbow, two delayed loops (elbow angle -> motor, motor rate -> elbow), at the natural
+    frequencies of the plant (eig of the Lagrange K, M): the plant's resolvent refuses them, but the loops move those
+    poles and the closed loop is regular there -- it equals the closed loop assembled from PlanarLagrange's M, C, K
+    (before: FrequencyAtPoleError claiming the response unbounded)."""
+    import scipy.linalg
+
+    from ctmm.control import Feedback, with_feedback
+    from ctmm.planar import ActuatedHinge, Fixed, PlanarModel, RigidBody
+    from ctmm.reference.planar_lagrange import PlanarLagrange
+
+    plant = PlanarModel.chain("pendulum", [Fixed("ground"), ActuatedHinge("motor"),
+                                           RigidBody.uniform_link("l0", mass=1.0, length=0.8), ActuatedHinge("h1"),
+                                           RigidBody.uniform_link("l1", mass=0.8, length=0.7)])
+    M, C, K = PlanarLagrange(plant).linearize(np.array([-np.pi / 2, -np.pi / 2]))
+    omega = np.sqrt(scipy.linalg.eigh(K, M, eigvals_only=True))
+    hinge = np.array([[1.0, 0.0], [-1.0, 1.0]])                 # hinge angles of the absolute angles
+    torque = np.array([[1.0, -1.0], [0.0, 1.0]])                # generalised forces of the motor and elbow torques
+    kp, kd, tau_a, tau_b = 6.0, 0.5, 0.05, 0.02
+    loops = [Feedback("a", [("h1.angle", kp)], "motor.torque", gain=1.0, delay=tau_a),
+             Feedback("b", [("motor.rate", kd)], "h1.torque", gain=1.0, delay=tau_b)]
+    reference = []
+    for s in 1j * omega:
+        Z = (M * s * s + C * s + K).astype(complex)
+        Z += np.outer(torque[:, 0], kp * np.exp(-s * tau_a) * hinge[1])
+        Z += np.outer(torque[:, 1], kd * s * np.exp(-s * tau_b) * hinge[0])
+        reference.append(hinge @ np.linalg.solve(Z, torque[:, 0]))
+    with pytest.raises(FrequencyAtPoleError):
+        ctmm.frequency_response(plant, omega, input="motor.torque", output="motor.angle")
+    frf = ctmm.frequency_response(with_feedback(plant, loops), omega, input="motor.torque",
+                                  output=["motor.angle", "h1.angle"])
+    np.testing.assert_allclose(frf.response[:, 0, :], np.array(reference).T, rtol=1e-10)

@@ -65,3 +65,15 @@ def test_a_linearized_system_passes_through_and_keeps_its_ports():
     assert interop.to_state_space(linear) is linear.state_space
     with pytest.raises(ctmm.ModelError, match="takes no inputs/outputs"):
         interop.to_state_space(linear, inputs="h.torque")
+
+
+def test_no_default_input_left_names_what_to_give_not_the_default():
+    """The loop takes the one actuator: the default leaves no input, and the refusal says what to name
+    (before: it also told the caller, who had left inputs=None, to 'leave inputs=None')."""
+    loop = Feedback("pd", [("h.angle", KP), ("h.rate", KD)], "h.torque", gain=1.0)
+    with pytest.raises(ctmm.ModelError, match=r"inputs=None leaves .*no input") as refused:
+        interop.to_state_space(with_feedback(spring_body(), [loop]))
+    assert "leave inputs=None" not in str(refused.value)
+    assert "'<loop>.reference'" in str(refused.value)
+    with pytest.raises(ctmm.ModelError, match=r"inputs=\[\] leaves .*or leave inputs=None"):
+        ctmm.linearize(with_feedback(spring_body(), [loop]), inputs=[], outputs=["h.angle"])

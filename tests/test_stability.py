@@ -233,6 +233,19 @@ def test_delay_margin_equals_hayes_critical_delay():
     assert result.stable_intervals[0] == (0.0, result.critical_delay)
 
 
+@pytest.mark.parametrize("delay_max_factor", [0.5, 0.05])
+def test_delay_margin_below_delay_max_keeps_the_critical_delay(delay_max_factor):
+    """delay_max only limits the crossings listed: the critical delay and the margin stay Hayes' closed form
+    (before: both inf, i.e. 'stable for every delay', when delay_max was below the first crossing)."""
+    c, k, g = 2.0, 1.0, 3.0
+    exact = hayes_critical_delay(-k / c, -g / c)
+    result = delay_margin(scalar(c, k, g, 0.1), delay_max=delay_max_factor * exact)
+    assert abs(result.critical_delay - exact) <= 1e-12 * exact
+    assert abs(result.critical_frequency - math.sqrt((g / c) ** 2 - (k / c) ** 2)) < 1e-12
+    assert result.stable and abs(result.margin - (exact - 0.1)) < 1e-12
+    assert result.crossing_delays == () and result.delay_max == delay_max_factor * exact
+
+
 def test_delay_margin_pd_on_mass_and_stability_switches():
     """m s^2 + (kp + kd s) e^{-s tau}: Omega^4 = kp^2 + kd^2 Omega^2, tau_c = arctan(kd Omega/kp)/Omega."""
     plant = ctmm.Chain("mass", [Free("a"), Mass("m", 1.0), Free("b")])

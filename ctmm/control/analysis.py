@@ -36,7 +36,7 @@ from scipy.optimize import minimize_scalar
 
 from .. import validation
 from ..controlled_linearization import FrequencyAtPoleError, delayed_loop_response_function
-from ..errors import ModelError
+from ..errors import ModelError, SingularSystemError
 from ..frequency import frequency_response
 from ..results import FrequencyResponse
 from ..roots1d import refine_sign_change
@@ -222,7 +222,8 @@ class Margins:
 
 def _certified_crossovers(system: ControlledChain | ControlledModel, loop: str) -> tuple[list, list, Any, list]:
     """Gain and phase crossovers [rad/s] of a controlled chain's (or linearised model's) loop from the certified
-    contour search of :mod:`ctmm.stability` (phase crossovers: gain factors in (0, 100])."""
+    contour search of :mod:`ctmm.stability` (phase crossovers: gain factors in (0, 100], at omega = 0 too: a real
+    root through s = 0, as python-control's margins count it)."""
     from ..stability import gain_crossovers, gain_margin
 
     try:
@@ -230,7 +231,7 @@ def _certified_crossovers(system: ControlledChain | ControlledModel, loop: str) 
         factors = gain_margin(system, loop)
     except ModelError as exc:
         return [], [], None, [f"crossovers not certified (only the grid was searched): {exc}"]
-    pc = [w for f, w in zip(factors.crossing_factors, factors.crossing_frequencies) if f > 0 and w > 0]
+    pc = [w for f, w in zip(factors.crossing_factors, factors.crossing_frequencies) if f > 0 and w >= 0]
     return [float(x) for x in gc], pc, certificate, []
 
 
@@ -263,6 +264,17 @@ def _grid_roots(values: np.ndarray, w: np.ndarray, keep: np.ndarray | None = Non
         elif a * b < 0 and (keep is None or keep[k] or keep[k + 1]):
             roots.append(float(w[k] - a * (w[k + 1] - w[k]) / (b - a)))
     return roots
+
+
+_AT_POLE = (FrequencyAtPoleError, SingularSystemError)      # a chain refuses a pole as a singular boundary problem
+
+
+def _value_or_none(evaluate: Callable[[float], complex], x: float) -> complex | None:
+    """``evaluate(x)``, or ``None`` at an undamped pole of the plant (refused there)."""
+    try:
+        return evaluate(x)
+    except _AT_POLE:
+        return None
 
 
 def _dedupe(values: Sequence[float], tol: float = 1e-9) -> list[float]:
@@ -308,6 +320,7 @@ def margins(source: Any, loop: str | None = None, omega: Any = None, *, fields: 
     """
     import control
 
+    at_poles: list[float] = []
     if isinstance(source, (ControlledChain, ControlledModel)):
         if loop is None or omega is None:
             raise ModelError(f"margins(system, loop, omega): give the loop name and a frequency grid [rad/s] "
@@ -315,11 +328,16 @@ def margins(source: Any, loop: str | None = None, omega: Any = None, *, fields: 
         w = _omega(omega)
         lp = source.loop(loop)
         plant = _open_loop_plant_function(source, loop, fields)     # planar / spatial: linearised once per call
-        L = lp.loop_gain(1j * w) * plant(w)
 
         def evaluate(x: float) -> complex:
             x_array = _omega([x])
             return complex((lp.loop_gain(1j * x_array) * plant(x_array))[0])
+        try:
+            L = lp.loop_gain(1j * w) * plant(w)
+        except _AT_POLE:                # grid points at an undamped pole of the plant: left out, noted below
+            values = [_value_or_none(evaluate, x) for x in w]
+            at_poles = [float(x) for x, value in zip(w, values) if value is None]
+            w, L = np.array([x for x in w if x not in at_poles]), np.array([v for v in values if v is not None])
     else:
         if isinstance(source, Chain):
             raise ModelError(f"margins needs a ControlledChain with loop {loop!r}, got the plain Chain "
@@ -343,6 +361,8 @@ def margins(source: Any, loop: str | None = None, omega: Any = None, *, fields: 
         else:
             raise ModelError(f"margins needs a ControlledChain, ControlledModel, FrequencyResponse or FRD, "
                              f"got {source!r:.80}")
+        w, first = np.unique(w, return_index=True)      # the spline below needs ascending, distinct frequencies
+        L = L[first]
         frd_smooth = control.frd(L, w, smooth=True)
 
         def evaluate(x: float) -> complex:
@@ -377,17 +397,14 @@ def margins(source: Any, loop: str | None = None, omega: Any = None, *, fields: 
 
     def at(x: float) -> complex | None:
         """``L(i x)``, or ``None`` at an undamped pole of the plant (refused there: no crossing)."""
-        try:
-            return evaluate(x)
-        except FrequencyAtPoleError:
-            return None
+        return _value_or_none(evaluate, x)
 
     def crossings(fun: Callable[[float], float], estimates: list[float]) -> list[float]:
         found = []
         for x in estimates:
             try:
                 found.append(_refine(fun, wg, x))
-            except FrequencyAtPoleError:        # L changes sign through infinity at an undamped pole: no crossing
+            except _AT_POLE:                    # L changes sign through infinity at an undamped pole: no crossing
                 continue
         return _dedupe(found)
 
@@ -409,6 +426,8 @@ def margins(source: Any, loop: str | None = None, omega: Any = None, *, fields: 
                                  "certified search")
                     found.append(x)
         gcs, pcs = sorted(gcs), sorted(pcs)
+        if at_poles:
+            notes.append(f"grid frequencies {at_poles[:5]} rad/s at poles of the plant left out (L is unbounded there)")
         if isinstance(source, ControlledModel):
             from ..spatial.model import SpatialModel
 

@@ -39,6 +39,23 @@ from .loops import ControlledChain, Feedback
 __all__ = ["PlantCache"]
 
 
+AMPLIFICATION_LIMIT = 1e8
+"""Largest accepted ratio (sum of the superposed moduli) / (modulus of the sum) in :meth:`PlantCache.closed_loop`:
+beyond it more than half of the digits would be lost (refused)."""
+
+
+def _refuse_lost_digits(call: str, omega: np.ndarray, lost: np.ndarray, what: str) -> None:
+    """Refuse the frequencies where ``lost`` (sum of the superposed moduli / modulus of the sum) exceeds
+    :data:`AMPLIFICATION_LIMIT`, naming them."""
+    if np.any(lost > AMPLIFICATION_LIMIT):
+        bad = omega[lost > AMPLIFICATION_LIMIT]
+        raise ModelError(f"{call}: at omega = {np.round(bad[:5], 6).tolist()} rad/s the {what} is a difference of "
+                         f"plant responses up to {np.max(lost):.3g} times larger than it (a plant resonance the loops "
+                         "tame) and would lose as many digits; there use ctmm.frequency_response or "
+                         "ctmm.control.loop_transfer_function of the controlled chain with these gains, or leave "
+                         "those frequencies out of the grid")
+
+
 class PlantCache:
     """Open-loop plant data of a controlled chain on a frequency grid, for fast loop design.
 
@@ -198,7 +215,10 @@ class PlantCache:
         Raises
         ------
         ModelError
-            If ``I + K P_yu`` is singular at a grid frequency (a closed-loop pole on the axis).
+            If ``I + K P_yu`` is singular at a grid frequency (a closed-loop pole on the axis), or where an output
+            is the difference of plant responses more than ``AMPLIFICATION_LIMIT`` (1e8) times larger than it (at
+            or next to a resonance of a lightly damped plant that the loops tame: the algebra would lose those
+            digits).
         """
         K = self.loop_gains(gains, delays)
         nw, nl = K.shape
@@ -218,6 +238,13 @@ class PlantCache:
                              "the imaginary axis there") from None
         Y = self.P_yw + self.P_yu @ U                          # sensed values
         Z = self.P_zw + self.P_zu @ U
+        with np.errstate(all="ignore"):                       # digits lost by the superposition (amplification)
+            terms = (np.abs(self.P_zw) + np.abs(self.P_zu) @ np.abs(U),
+                     np.abs(self.P_yw) + np.abs(self.P_yu) @ np.abs(U))
+            lost = [np.where(size > 0, size / np.abs(value), 1.0).max(axis=(1, 2))
+                    for size, value in zip(terms, (Z, Y))]
+        lost = np.maximum(*lost) if any(kind == "y" for kind, _ in self._z_kind) else lost[0]
+        _refuse_lost_digits("PlantCache.closed_loop", self.omega, lost, "closed loop")
         out = np.empty((len(self.outputs), len(self.inputs), nw), dtype=complex)
         for o, (kind, value) in enumerate(self._z_kind):
             if kind == "plant":
@@ -245,7 +272,12 @@ class PlantCache:
             Pio = self.P_yu[:, i, o]
             Poi = self.P_yu[:, o, i]
             M = np.eye(o.size)[None] + Ko[:, :, None] * Poo
-            P = P - np.einsum("wk,wk->w", Pio, np.linalg.solve(M, (Ko * Poi)[:, :, None])[:, :, 0])
+            closed = np.linalg.solve(M, (Ko * Poi)[:, :, None])[:, :, 0]
+            with np.errstate(all="ignore"):
+                size = np.abs(P) + np.einsum("wk,wk->w", np.abs(Pio), np.abs(closed))
+                P = P - np.einsum("wk,wk->w", Pio, closed)
+                _refuse_lost_digits(f"PlantCache.loop_transfer({loop!r})", self.omega,
+                                    np.where(size > 0, size / np.abs(P), 1.0), "loop transfer function")
         L = K[:, i] * P
         name = self.loops[i].name
         return FrequencyResponse(self.omega, L[None, None], (f"{name}.u",), (f"{name}.L",), f"L_{name}")
