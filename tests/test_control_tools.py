@@ -258,6 +258,27 @@ def test_margins_of_first_order_lag_with_delay_closed_form():
     assert pm_pc == pytest.approx(math.degrees(pm), rel=1e-4) and wgc_pc == pytest.approx(wgc, rel=1e-4)
 
 
+def test_a_negative_phase_margin_is_named_in_the_notes_and_the_closed_loop_is_unstable():
+    """The first-order lag with a delay beyond its critical one: PM = pi - atan(m w_gc / c) - w_gc tau < 0 (closed
+    form) and the closed loop is unstable (ctmm.stability: margin 0, an unstable root).  ``delay_margin`` keeps the
+    python-control convention (PM mod 360 deg) / w_gc, and ``notes`` says that it is no tolerated delay there."""
+    from ctmm import stability
+
+    m, c, k = 2.0, 1.0, 5.0
+    wgc = math.sqrt(k * k - c * c) / m
+    tau = 1.2 * (math.pi - math.atan(m * wgc / c)) / wgc
+    system = first_order_lag(m, c, k, tau)
+    pm = math.pi - math.atan(m * wgc / c) - wgc * tau
+    result = margins(system, "speed", np.logspace(-2, 2, 600))
+    assert pm < 0.0 and result.phase_margin == pytest.approx(math.degrees(pm), rel=1e-11)
+    assert result.delay_margin == pytest.approx((pm % (2.0 * math.pi)) / wgc, rel=1e-11)
+    assert any("negative phase margin" in note and "not a delay the loop tolerates" in note for note in result.notes)
+    assert stability.delay_margin(system).margin == 0.0
+    assert stability.unstable_root_count(system, sigma=1e-3)[0] >= 2       # (the free position: a root at s = 0)
+    stable = margins(first_order_lag(m, c, k, 0.1), "speed", np.logspace(-2, 2, 600))
+    assert not any("negative phase margin" in note for note in stable.notes)
+
+
 def test_margins_of_data_on_an_unsorted_grid_closed_form():
     """Margins of L given as data on a shuffled grid with a repeated frequency are the closed form of
     the first-order lag with delay (before: ValueError 'Invalid inputs.' from the spline)."""

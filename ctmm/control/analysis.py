@@ -179,8 +179,11 @@ class Margins:
         ``180 + arg L(i w_gc)`` in ``[-180, 180)`` over the gain crossovers, the one smallest in
         magnitude (``inf`` if none) [deg].
     delay_margin : float
-        Smallest extra delay that destabilises: ``min PM_gc [rad] / w_gc`` [s] (``inf`` if no
-        gain crossover).
+        Smallest extra delay that destabilises: ``min (PM_gc mod 360 deg) [rad] / w_gc`` [s] (``inf`` if
+        no gain crossover; python-control's and MATLAB's convention).  With a negative phase margin the
+        closed loop may already be unstable, and this number is then the delay that turns that
+        crossover's phase by the rest of a whole turn, not a delay the loop tolerates: ``notes`` says
+        so, and :func:`ctmm.stability.delay_margin` (the characteristic roots) decides.
     gain_crossover_frequency, phase_crossover_frequency : float
         Frequencies [rad/s] of the returned phase and gain margins (``nan`` if none).
     delay_crossover_frequency : float
@@ -448,6 +451,10 @@ def margins(source: Any, loop: str | None = None, omega: Any = None, *, fields: 
         pms.append(pm)
         dms.append(math.radians(pm % 360.0) / x)
     gms = [1.0 / abs(evaluate(x)) for x in pcs]
+    notes.extend(f"negative phase margin {pm:.4g} deg at the gain crossover {x:.6g} rad/s: the closed loop may "
+                 f"already be unstable; delay_margin there, (PM mod 360 deg) / w = {dm:.4g} s, is then not a delay "
+                 "the loop tolerates (ctmm.stability.delay_margin and unstable_root_count decide from the roots)"
+                 for x, pm, dm in zip(gcs, pms, dms) if pm < 0.0)
     # stability margin: min |1 + L| on the grid, refined by a bounded scalar search
     dist = np.abs(1.0 + Lg)
     k = int(np.argmin(dist))
