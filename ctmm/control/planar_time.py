@@ -523,6 +523,9 @@ def simulate_closed_loop(model: Any, q0: np.ndarray, qdot0: np.ndarray, t_final:
                          f"{tuple(sorted(SCHEMES))} for a planar model with loops, controllers or inputs, "
                          f"got {method!r}")
     fixed = method == "rk4" or scheme is not None
+    if not fixed and store_every != 1:
+        raise ModelError(f"store_every={store_every!r} applies to fixed-step methods; with {method!r} give dt to "
+                         "store the result on the grid k dt (leave store_every at 1)")
     t_final = validation.positive("t_final", t_final)
     projection = validation.flag("projection", projection)
     if dt is not None:
