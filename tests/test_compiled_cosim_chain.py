@@ -110,6 +110,33 @@ def test_failures_and_refusals_carry_what_the_numpy_path_does():
         ctmm.simulate(chain, 0.1, 5e-3, method="RK45", controllers=[pid], compiled=True)
 
 
+
+class FailingAtFirstSample(Failing):
+    def init(self, t0: float) -> int:
+        return 2                        # Failing raises at the sample with state 2: here t = 0
+
+
+@pytest.mark.parametrize("system", ["chain", "planar"])
+def test_a_controller_failing_at_the_first_sample_leaves_no_row_on_either_path(system):
+    """docs/control.md §4a: the failure at t = 0 is a SimulationError with the partial result cut to the last good
+    step, none (the numpy path's); the generated RK4 of a chain raised IndexError building it, a planar one kept
+    the unsampled start row."""
+    from ctmm.planar import Fixed as Ground, PlanarModel, RigidBody, SmoothHinge
+
+    if system == "chain":
+        model, x0, sensor, actuator, signal = one_mass(), {"m": 0.1}, "m.x", "m.force", "m.x"
+    else:
+        model = PlanarModel.chain("p", [Ground("g"), SmoothHinge("h"), RigidBody.uniform_link("rod", mass=1.0,
+                                                                                              length=1.0)])
+        x0, sensor, actuator, signal = {"rod.theta": -1.0}, "h.angle", "h.torque", "rod.theta"
+    for compiled in (True, False):
+        with pytest.raises(SimulationError, match="controller broke") as failed:
+            ctmm.simulate(model, 0.1, 5e-3, method="rk4", x0=x0, controllers=[FailingAtFirstSample(sensor, actuator)],
+                          compiled=compiled)
+        assert failed.value.time == 0.0
+        assert len(failed.value.partial_result.time) == 0 and len(failed.value.partial_result[signal]) == 0
+
+
 def assert_partial_equal(generated: ctmm.SimulationResult, python: ctmm.SimulationResult) -> None:
     np.testing.assert_array_equal(generated.time, python.time)
     for name in ("m.x", "m.v", "m.a", "k.f"):
