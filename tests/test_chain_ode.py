@@ -277,3 +277,18 @@ def test_x0_of_a_massless_point_is_an_initial_value_only_where_it_can_be():
     pulled = ctmm.Chain("free", [Free("s"), Spring("k", 100.0), Mass("m", 1.0), Spring("k2", 50.0), Fixed("e")])
     with pytest.raises(ModelError, match=r"x0\['s'\] = 0.3: the point of 's' has no mass"):
         ctmm.simulate(pulled, 0.1, 0.01, method="rk4", x0={"s": 0.3})
+
+
+@pytest.mark.parametrize("method", ["rk4", "newmark"])
+def test_a_start_value_given_by_the_free_end_moves_the_mass_it_sits_on(method):
+    """x0 / v0 by element name set a point (docs/verbs.md): the Free end behind a mass is that mass's point, so
+    {"end": x} starts the mass at x (it was dropped: the run stayed at rest); two names of one point with different
+    values are refused.  Reference: m x'' = -k x, x(t) = x0 cos(w t) + v0 / w sin(w t)."""
+    k, m = 100.0, 1.0
+    chain = ctmm.Chain("a", [Fixed("wall"), Spring("k1", k), Mass("m1", m), Free("end")])
+    result = ctmm.simulate(chain, 0.2, 1e-3, method=method, x0={"end": 0.01}, v0={"end": 0.2})
+    w = np.sqrt(k / m)
+    exact = 0.01 * np.cos(w * result.time) + 0.2 / w * np.sin(w * result.time)
+    assert np.max(np.abs(result["m1.x"] - exact)) < 1e-6          # Newmark at dt w = 0.01: 2.9e-7 m; RK4 3e-12
+    with pytest.raises(ModelError, match=r"x0\['end'\] = 0.02 and x0\['m1'\] = 0.01 set one point"):
+        ctmm.simulate(chain, 0.2, 1e-3, method=method, x0={"m1": 0.01, "end": 0.02})
