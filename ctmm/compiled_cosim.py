@@ -49,6 +49,7 @@ from .compiled_parameters import station_loads
 from .control.chain_plant import ChainPlant
 from .control.controlled_model import ControlledModel
 from .control.cosim import CoSimulation, check_wiring
+from .control.loop_rows import empty_result
 from .control.loops import ControlledChain
 from .control.plants import plant_of
 from .errors import ModelError, SimulationError
@@ -201,14 +202,11 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
             "loops": {law.name: ("real-time" if law.steps == 0 else "history") for law in scene.loops.laws}}
     done = [0]                                                    # steps run
 
-    def empty() -> SimulationResult:
-        signals, units = plant.signals(np.zeros(0), np.zeros((0, nq)), np.zeros((0, nv)), outputs)
-        return signal_result(SignalSystem(model, units, list(loops)), np.zeros(0), signals, "rk4-generated", info)
-
     try:
         master = CoSimulation(controllers, dt, 0.0, coupling=coupling, measurement_delays=True)
     except SimulationError as exc:          # a controller's init failed: nothing was simulated
-        raise with_partial(exc, empty) from exc.__cause__
+        raise with_partial(exc, lambda: empty_result(plant, model, loops, outputs, "rk4-generated", info)) \
+            from exc.__cause__
     start = clock.perf_counter()
 
     def result(count: int) -> SimulationResult:
