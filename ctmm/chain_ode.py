@@ -29,7 +29,6 @@ balance.  Stored accelerations of massless nodes are ``NaN`` (they are not state
 """
 from __future__ import annotations
 
-import math
 import time as clock
 from typing import Any, Callable, Mapping, Sequence
 
@@ -41,7 +40,7 @@ from .elements.base import Element
 from .errors import ModelError, SimulationError
 from .guard import DivergenceGuard
 from .lumped_forms import LumpedTree, explicit_accelerations, lumped_tree, massless_nodes
-from .ode import rk4_step
+from .ode import output_grid, rk4_step
 from .chain_affine import LinearRates, linear_rates
 from .chain_point_rows import point_values_rows
 from .closed_form_rates import signal_derivatives
@@ -553,7 +552,7 @@ def simulate_chain_ode(chain, t_final: float, dt: float | None, *, method: str =
         info.update(rtol=rtol, atol=atol)
         if dt is not None:
             dt = validation.positive("dt", dt)
-            grid = t0 + dt * np.arange(int(math.floor((t_final - t0) / dt + 1e-9)) + 1)
+            grid = output_grid(t0, t_final, dt)
             info["dt"] = dt
         options = {} if max_step is None else {"max_step": validation.positive("max_step", max_step)}
         solution = solve_ivp(dynamics.rate, (t0, t_final), y, method=method, t_eval=grid,

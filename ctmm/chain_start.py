@@ -75,20 +75,19 @@ def initial_state(system: Chain, x0: Mapping[str, float] | None, v0: Mapping[str
                                  "prescribes its own motion; give initial values to moving points only")
     x = rest_positions(system)
     v = np.zeros(system.n_points)
-    given = np.zeros(system.n_points, dtype=bool)
-    for values, target in ((x0, x), (v0, v)):
-        for element_name, value in values.items():
-            p = point_of_element(system, element_name)
-            target[p] = value
-            given[p] = True
-            if target is x:
-                e = system.element(element_name)
-                if e.is_point and system.position(element_name) not in (0, len(system.elements) - 1):
-                    target[p + 1] = target[p]
-    # points tied to a point element share its value
+    node = np.zeros(system.n_points, dtype=int)     # points tied by point elements move as one node
     for j, e in enumerate(system.body, start=1):
-        if e.is_point:
-            x[j], v[j] = x[j - 1], v[j - 1]
+        node[j] = node[j - 1] if e.is_point else node[j - 1] + 1
+    for label, values, target in (("x0", x0, x), ("v0", v0, v)):
+        setters: dict[int, str] = {}
+        for element_name, value in values.items():
+            k = node[point_of_element(system, element_name)]
+            if k in setters and not math.isclose(value, values[setters[k]], rel_tol=1e-12, abs_tol=1e-15):
+                raise ModelError(f"{label}[{element_name!r}] = {value!r} and {label}[{setters[k]!r}] = "
+                                 f"{values[setters[k]]!r} set one point (the elements are joined without a "
+                                 "connector between them); give one value")
+            setters[k] = element_name
+            target[node == k] = value
     return x[:, None], v[:, None]
 
 

@@ -324,7 +324,7 @@ class CompiledChain:
         acceleration += ca.DM(form.a0)
         accelerations = ca.Function("acceleration", [q, v, u, p, t], [acceleration])
         controlled = system if loops else ControlledChain(plant.chain, ())
-        self.loops = None if not (loops or inputs) else ClosedLoops(controlled, self.actuators, dt, references, inputs,
+        self.loops = None if not (loops or inputs or references) else ClosedLoops(controlled, self.actuators, dt, references, inputs,
                                                                      symbols=ChainSymbols(plant))
         if self.loops is None:
             y = ca.MX.sym("y", m + r)

@@ -49,6 +49,7 @@ from .compiled_parameters import station_loads
 from .control.chain_plant import ChainPlant
 from .control.controlled_model import ControlledModel
 from .control.cosim import CoSimulation, check_wiring
+from .control.loop_rows import empty_result
 from .control.loops import ControlledChain
 from .control.plants import plant_of
 from .errors import ModelError, SimulationError
@@ -194,24 +195,22 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     label = "rk4-generated" if chain else "rk4"     # the numpy path's label in the plant's own messages
     history: deque = deque(maxlen=max(delays, default=0) + 1)     # (step, state) of the delayed reads
     history.append((0, first))
-    times, rows = [0.0], [first]
+    times: list[float] = []                                       # the stored rows, from t = 0 once sampled
+    rows: list[np.ndarray] = []
     held_rows: list[dict[str, float]] = []                         # a chain's held controller outputs per row
     info = {"dt": dt, "method": "rk4-generated", "compile_time_s": scene.compile_time_s,
             "loops": {law.name: ("real-time" if law.steps == 0 else "history") for law in scene.loops.laws}}
     done = [0]                                                    # steps run
 
-    def empty() -> SimulationResult:
-        signals, units = plant.signals(np.zeros(0), np.zeros((0, nq)), np.zeros((0, nv)), outputs)
-        return signal_result(SignalSystem(model, units, list(loops)), np.zeros(0), signals, "rk4-generated", info)
-
     try:
         master = CoSimulation(controllers, dt, 0.0, coupling=coupling, measurement_delays=True)
     except SimulationError as exc:          # a controller's init failed: nothing was simulated
-        raise with_partial(exc, empty) from exc.__cause__
+        raise with_partial(exc, lambda: empty_result(plant, model, loops, outputs, "rk4-generated", info)) \
+            from exc.__cause__
     start = clock.perf_counter()
 
     def result(count: int) -> SimulationResult:
-        t, block = np.array(times[:count]), np.array(rows[:count]).reshape(count, -1)
+        t, block = np.array(times[:count]), np.array(rows[:count], dtype=float).reshape(count, first.size)
         if chain:
             signals, units, extra = chain_loop_signals(model, scene, t, block, outputs, held_rows[:count])
         else:
@@ -283,7 +282,9 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
 
     def advance() -> None:
         nonlocal intervals
-        sample(0, first)
+        sample(0, first)                # a controller failing here leaves no row, as on the numpy path
+        times.append(0.0)
+        rows.append(first)
         if per_row_inputs:
             held_rows.append(held_now())
         state, k = first, 0

@@ -240,9 +240,10 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
     intervals = 0
     runner = BlockRunner()                  # the call buffers of this run's intervals, set up once
     start = clock.perf_counter()
+    master: CoSimulation | None = None          # None: a controller's init failed (no samples, nothing run)
 
     def result(count: int) -> SimulationResult:
-        t, block = np.array(times[:count]), np.array(rows[:count]).reshape(count, -1)
+        t, block = np.array(times[:count]), np.array(rows[:count], dtype=float).reshape(count, compiled.state_size)
         applied = None
         if kinematic:                   # the cut loads with each row's actuator values
             entries = compiled.signal_states(block[:, compiled.status_index + len(STATUS):], t)
@@ -251,7 +252,7 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
                                           held_rows[:count])
         signals, units = plant.signals(t, block[:, :nq], block[:, nq:nq + nv], outputs,
                                        **({"inputs": applied} if kinematic else {}))
-        for name, samples in master.outputs(until=t[-1] if count else -math.inf).items():
+        for name, samples in (master.outputs(until=t[-1] if count else -math.inf) if master else {}).items():
             signals[name], units[name] = samples, ports.actuator_unit(name.split("@")[0])
         more = {}
         if looped:
@@ -260,7 +261,8 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
                                     np.hstack([block[:, :nq + nv], entries]), t, signals, units)
             more["loops"] = {law.name: "real-time" if law.steps == 0 else "history" for law in compiled.loops.laws}
         return signal_result(SignalSystem(model, units, list(loops)), t, signals, label, {
-            **info, **more, "wall_time_s": clock.perf_counter() - start, "controllers": master.describe(),
+            **info, **more, "wall_time_s": clock.perf_counter() - start,
+            "controllers": master.describe() if master else [],
             "intervals": intervals, "newton_iterations": int(block[-1, compiled.status_index + 2]) if count else 0})
 
     try:

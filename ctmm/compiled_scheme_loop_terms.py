@@ -388,4 +388,5 @@ class SchemeLoopTerms:
         if count and rows:
             delayed = np.asarray(self.state_functions[3].map(rows)(controller.T, np.asarray(times, float)[None, :])).T
             theirs[:, :, :count] = delayed[:, None, :]
-        return np.hstack([controller[:, :self.loops.n_controller_states], theirs.reshape(rows, -1)])
+        return np.hstack([controller[:, :self.loops.n_controller_states],
+                          theirs.reshape(rows, self.loops.ring_columns * 2 * count)])

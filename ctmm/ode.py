@@ -105,3 +105,14 @@ def second_order_rate(acceleration: Callable[[np.ndarray, np.ndarray, float], np
 
     return rate
 
+
+def output_grid(t0: float, t_final: float, dt: float) -> np.ndarray:
+    """The times [s] a ``solve_ivp`` run with an output step stores: ``t0 + k dt`` up to ``t_final``, and
+    ``t_final`` itself (appended when the step does not divide the run; the last grid time set to it where
+    round-off put it beside it: ``solve_ivp`` refuses a ``t_eval`` beyond its span)."""
+    grid = t0 + dt * np.arange(int(np.floor((t_final - t0) / dt + 1e-9)) + 1)
+    if abs(grid[-1] - t_final) <= 1e-9 * max(abs(t_final), dt):
+        grid[-1] = t_final
+    elif grid[-1] < t_final:
+        grid = np.append(grid, t_final)
+    return grid

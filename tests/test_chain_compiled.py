@@ -86,3 +86,13 @@ def test_refusals_name_what_does_not_compile():
                       compiled=True)                                  # nodes: test_chain_compiled_massless_loops)
     with pytest.raises(ModelError, match="Python callable"):
         ctmm.simulate(setup.plant, 0.1, 0.01, method="rk4", compiled=True, inputs={"m0.force": lambda t: t})
+
+
+def test_a_reference_to_an_unknown_loop_is_refused_on_a_plain_chain():
+    """A plain chain has no loop to take a reference: the generated RK4 refuses the name as the Python path does
+    (it dropped it and ran the open chain)."""
+    plant = seed_setup([]).plant
+    for compiled in (False, True):
+        with pytest.raises(ModelError, match="unknown .*loop.*'zz'"):
+            ctmm.simulate(plant, 0.05, 0.001, method="rk4", compiled=compiled, x0={"m0": 0.01},
+                          references={"zz": 1.0})

@@ -238,3 +238,12 @@ def test_a_diverging_loop_stops_with_the_partial_result():
     partial = error.partial_result
     assert partial is not None and 1 < len(partial.time) and partial.time[-1] < error.time
     assert np.all(np.isfinite(partial["m2.x"])) and "loop0.u" in partial.extra
+
+
+@pytest.mark.parametrize("method", ["DOP853", "Radau"])
+def test_store_every_is_refused_with_a_solve_ivp_method_on_the_loop_path(method):
+    """store_every thins a fixed-step run; with a solve_ivp method the output grid is dt (the plain chain's ODE
+    path and planar models refuse it; the loop driver kept every row)."""
+    setup = seed_setup(DELAYED)
+    with pytest.raises(ModelError, match="store_every=10 applies to fixed-step methods"):
+        run(setup.system, 0.1, 0.01, method=method, store_every=10)

@@ -277,3 +277,31 @@ def test_x0_of_a_massless_point_is_an_initial_value_only_where_it_can_be():
     pulled = ctmm.Chain("free", [Free("s"), Spring("k", 100.0), Mass("m", 1.0), Spring("k2", 50.0), Fixed("e")])
     with pytest.raises(ModelError, match=r"x0\['s'\] = 0.3: the point of 's' has no mass"):
         ctmm.simulate(pulled, 0.1, 0.01, method="rk4", x0={"s": 0.3})
+
+
+@pytest.mark.parametrize("method", ["rk4", "newmark"])
+def test_a_start_value_given_by_the_free_end_moves_the_mass_it_sits_on(method):
+    """x0 / v0 by element name set a point (docs/verbs.md): the Free end behind a mass is that mass's point, so
+    {"end": x} starts the mass at x (it was dropped: the run stayed at rest); two names of one point with different
+    values are refused.  Reference: m x'' = -k x, x(t) = x0 cos(w t) + v0 / w sin(w t)."""
+    k, m = 100.0, 1.0
+    chain = ctmm.Chain("a", [Fixed("wall"), Spring("k1", k), Mass("m1", m), Free("end")])
+    result = ctmm.simulate(chain, 0.2, 1e-3, method=method, x0={"end": 0.01}, v0={"end": 0.2})
+    w = np.sqrt(k / m)
+    exact = 0.01 * np.cos(w * result.time) + 0.2 / w * np.sin(w * result.time)
+    assert np.max(np.abs(result["m1.x"] - exact)) < 1e-6          # Newmark at dt w = 0.01: 2.9e-7 m; RK4 3e-12
+    with pytest.raises(ModelError, match=r"x0\['end'\] = 0.02 and x0\['m1'\] = 0.01 set one point"):
+        ctmm.simulate(chain, 0.2, 1e-3, method=method, x0={"m1": 0.01, "end": 0.02})
+
+
+@pytest.mark.parametrize("t_final, t0", [(0.3, 0.0), (0.35, 0.0), (0.35, 0.1)])
+def test_solve_ivp_output_grid_is_k_dt_and_the_end(t_final, t0):
+    """dt is the output grid of a solve_ivp run (docs/verbs.md): the times t0 + k dt and t_final itself.  A grid
+    time beyond t_final by round-off (3 x 0.1 > 0.3) made scipy raise ValueError ('t_eval not within t_span'); a
+    t_final off the grid lost the end of the run.  Reference: x0 cos(w t)."""
+    chain = ctmm.Chain("a", [Fixed("wall"), Spring("k1", 100.0), Mass("m1", 1.0), Free("end")])
+    result = ctmm.simulate(chain, t_final, 0.1, method="DOP853", x0={"m1": 0.01}, t0=t0, rtol=1e-10, atol=1e-12)
+    grid = [t for t in (0.0, 0.1, 0.2, 0.3) if t >= t0 - 1e-12]
+    expected = grid + ([t_final] if t_final != grid[-1] else [])
+    np.testing.assert_allclose(result.time, expected, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(result["m1.x"], 0.01 * np.cos(10.0 * (result.time - t0)), rtol=0, atol=1e-10)

@@ -56,6 +56,18 @@ def test_simulate_honours_the_cut_joint_with_every_method():
     assert errors[1] < 1e-4 and 3.0 < errors[0] / errors[1] < 5.0
 
 
+
+def test_solve_ivp_output_grid_is_k_dt_and_the_end():
+    """dt is the output grid of a solve_ivp run: k dt and t_final where dt does not divide it (the grid was
+    stretched to t_final / round(t_final / dt) steps); the states there are the DAE's."""
+    loop = four_bar(SPRING)
+    q0, v0 = start(loop)
+    run = ctmm.simulate(loop, 0.105, 1e-2, x0=q0, v0=v0, method="DOP853", rtol=1e-11, atol=1e-12)
+    np.testing.assert_allclose(run.time, np.append(1e-2 * np.arange(11), 0.105), rtol=0, atol=1e-15)
+    reference = _dae_history(loop, q0, v0, run.time)
+    assert np.max(np.abs(run["rocker.theta"] - reference.angle("rocker"))) < 1e-8
+
+
 def _dae(crank_torque: float) -> PlanarDAE:
     """The four-bar with the rocker spring as a global DAE, a constant torque [N m] on the crank from the ground."""
     dae = PlanarDAE(gravity=(0.0, -9.81))

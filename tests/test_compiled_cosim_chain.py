@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import ctmm
-from ctmm.control import ControlledChain, Feedback, FMUController
+from ctmm.control import ControlledChain, ControlledModel, Feedback, FMUController
 from ctmm.control.measurement_delay import DelayedController
 from ctmm.elements import Fixed, Free, Mass, Spring, SpringDamper
 from ctmm.errors import ModelError, SimulationError
@@ -110,6 +110,33 @@ def test_failures_and_refusals_carry_what_the_numpy_path_does():
         ctmm.simulate(chain, 0.1, 5e-3, method="RK45", controllers=[pid], compiled=True)
 
 
+
+class FailingAtFirstSample(Failing):
+    def init(self, t0: float) -> int:
+        return 2                        # Failing raises at the sample with state 2: here t = 0
+
+
+@pytest.mark.parametrize("system", ["chain", "planar"])
+def test_a_controller_failing_at_the_first_sample_leaves_no_row_on_either_path(system):
+    """docs/control.md §4a: the failure at t = 0 is a SimulationError with the partial result cut to the last good
+    step, none (the numpy path's); the generated RK4 of a chain raised IndexError building it, a planar one kept
+    the unsampled start row."""
+    from ctmm.planar import Fixed as Ground, PlanarModel, RigidBody, SmoothHinge
+
+    if system == "chain":
+        model, x0, sensor, actuator, signal = one_mass(), {"m": 0.1}, "m.x", "m.force", "m.x"
+    else:
+        model = PlanarModel.chain("p", [Ground("g"), SmoothHinge("h"), RigidBody.uniform_link("rod", mass=1.0,
+                                                                                              length=1.0)])
+        x0, sensor, actuator, signal = {"rod.theta": -1.0}, "h.angle", "h.torque", "rod.theta"
+    for compiled in (True, False):
+        with pytest.raises(SimulationError, match="controller broke") as failed:
+            ctmm.simulate(model, 0.1, 5e-3, method="rk4", x0=x0, controllers=[FailingAtFirstSample(sensor, actuator)],
+                          compiled=compiled)
+        assert failed.value.time == 0.0
+        assert len(failed.value.partial_result.time) == 0 and len(failed.value.partial_result[signal]) == 0
+
+
 def assert_partial_equal(generated: ctmm.SimulationResult, python: ctmm.SimulationResult) -> None:
     np.testing.assert_array_equal(generated.time, python.time)
     for name in ("m.x", "m.v", "m.a", "k.f"):
@@ -126,3 +153,30 @@ def test_stored_rows_carry_the_held_outputs_of_their_interval():
     generated = ctmm.simulate(one_mass(), 0.095, 5e-3, compiled=True, **arguments)
     assert generated.info["intervals"] == 7
     assert_same(generated, ctmm.simulate(one_mass(), 0.095, 5e-3, **arguments), ["m.x", "m.v", "m.a", "k.f"])
+
+
+class FailingInit(Failing):
+    def init(self, t0: float) -> int:
+        raise RuntimeError("controller broke")
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_controller_failing_in_init_leaves_every_loop_signal_empty(compiled):
+    """docs/control.md §4a: the partial result of a controller's failing init carries the plant's and every loop's
+    signals (``"<loop>.y"``, ``".u"``, ``.u_demand``, ``.saturated``) with no rows, as a run's result names them (the
+    loop-driver and generated RK4 paths left out the loops')."""
+    from ctmm.planar import Fixed as Ground, PlanarModel, RigidBody, SmoothHinge
+
+    rod = PlanarModel.chain("p", [Ground("g"), SmoothHinge("h"), RigidBody.uniform_link("rod", mass=1.0, length=1.0)])
+    system = ControlledModel(rod, [Feedback("pd", [("rod.theta", 3.0), ("rod.omega", 0.4)], "h.torque", gain=1.0,
+                                            delay=0.01, saturation=(-2.0, 2.0))])
+    chain = ControlledChain(one_mass(), [Feedback("fb", "m.x", "m", gain=3.0, delay=0.01)])
+    for model, x0, sensor, actuator in ((system, {"rod.theta": -1.0}, "h.angle", "rod.moment"),
+                                        (chain, {"m": 0.1}, "m.x", "m.force")):
+        full = ctmm.simulate(model, 0.02, 5e-3, method="rk4", x0=x0, compiled=compiled)
+        with pytest.raises(SimulationError, match="controller broke") as failed:
+            ctmm.simulate(model, 0.02, 5e-3, method="rk4", x0=x0, controllers=[FailingInit(sensor, actuator)],
+                          compiled=compiled)
+        partial = failed.value.partial_result
+        assert set(partial.signals()) == set(full.signals())
+        assert all(len(partial[name]) == 0 and partial.unit(name) == full.unit(name) for name in full.signals())

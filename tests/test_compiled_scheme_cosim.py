@@ -104,6 +104,38 @@ def test_a_failing_controller_stops_both_paths_with_the_same_partial_result(pend
                                atol=1e-12)
 
 
+
+class FailingAtOnce(Failing):
+    """Raises in ``init`` (``where="init"``) or at its first sample, ``t = 0``."""
+
+    def __init__(self, where: str) -> None:
+        super().__init__("a.theta", "o.torque")
+        self.where = where
+
+    def init(self, t0: float) -> int:
+        if self.where == "init":
+            raise RuntimeError("controller broke")
+        return 2                        # Failing raises at the sample with state 2
+
+
+@pytest.mark.parametrize("where", ["init", "first sample"])
+@pytest.mark.parametrize("looped", [False, True])
+def test_a_controller_failing_before_the_first_step_gives_an_empty_partial_result(pendulum, where, looped):
+    """docs/control.md §4a: a controller that fails in init or at t = 0 stops the run with a SimulationError at
+    t = 0 and an empty partial result (the generated scheme raised ValueError / NameError building it)."""
+    from ctmm.control import Feedback, with_feedback
+
+    model, x0, v0 = pendulum
+    system = with_feedback(model, [Feedback("pd", [("b.theta", 3.0)], "h.torque", gain=1.0)]) if looped else model
+    for compiled in (True, False):
+        with pytest.raises(SimulationError, match="controller broke") as info:
+            ctmm.simulate(system, 0.1, 5e-3, method="newmark", x0=x0, v0=v0, compiled=compiled,
+                          controllers=[FailingAtOnce(where)])
+        assert info.value.time == 0.0
+        partial = info.value.partial_result
+        assert len(partial.time) == 0 and len(partial["a.theta"]) == 0
+
+
 def test_what_the_generated_scheme_does_not_close_is_refused(pendulum):
     model, x0, v0 = pendulum
     with pytest.raises(ModelError, match="open-loop inputs as finite numbers"):

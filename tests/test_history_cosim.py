@@ -72,6 +72,24 @@ def test_window_is_order_delay_over_step_and_lookups_stay_exact():
         assert max(lengths) <= bound and max(lengths[2000:]) == max(lengths[:2000])   # no growth with the run
 
 
+
+def test_hermite_keeps_what_the_delay_reads_when_steps_are_shorter_than_the_window_step():
+    """A solve_ivp method may take steps far shorter than the step the window is counted in (``tau * 1e-5`` on the
+    loop driver): the window must still reach ``t - tau`` (it was trimmed by count and a lookup fell before it,
+    "internal error"), and stay bounded."""
+    tau, step, short = 0.05, 1e-3, 1e-5          # 5000 samples per delay against a window of 2 * 53
+    history = DelayHistory(0.0, cubic(0.0), cubic_rate(0.0), delay=tau, step=step)
+    lengths = []
+    for n in range(1, 30001):
+        t = n * short
+        history.append(t, cubic(t), cubic_rate(t))
+        lengths.append(history.window_length)
+        if t > tau and n % 997 == 0:
+            s = t - tau + 0.3 * short
+            assert history(s) == pytest.approx(cubic(s), rel=1e-12)
+    assert max(lengths) <= 2 * (tau / short + 3)    # bounded by the samples of one delay, not the run
+
+
 def test_lookups_beyond_the_last_sample_or_before_the_window_are_refused():
     history = DelayHistory(0.0, 0.0, 0.0, delay=0.002, step=1e-3)
     for n in range(1, 50):

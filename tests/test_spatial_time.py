@@ -223,3 +223,14 @@ def test_welded_model_has_static_reactions() -> None:
     np.testing.assert_allclose(wrench[0], [0, 0, 5 * 9.81, 0, -3 * 9.81 * 0.3, 0], atol=1e-12)
     with pytest.raises(ModelError, match="nothing to integrate"):
         ctmm.simulate(model, 1.0, 0.01)
+
+
+def test_solve_ivp_output_grid_is_k_dt_and_the_end() -> None:
+    """dt is the output grid of a solve_ivp run: t = k dt, and t_final where dt does not divide it (the grid was
+    stretched to t_final / round(t_final / dt) steps, 1.005 ms for dt = 1 ms)."""
+    arm = sp.SpatialModel("arm", [sp.SpatialBody("l", 1.0, (0.01, 0.1, 0.1), center_of_mass=(0.5, 0, 0)),
+                                  sp.Revolute(name="j", parent=None, child="l", axis=(0, 0, 1))],
+                          gravity=(0, -9.81, 0))
+    result = ctmm.simulate(arm, 0.1005, 1e-3, method="DOP853", x0={"j.angle": -1.0})
+    expected = np.append(1e-3 * np.arange(101), 0.1005)
+    np.testing.assert_allclose(result.time, expected, rtol=0, atol=1e-15)

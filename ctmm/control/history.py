@@ -3,8 +3,10 @@
 One class, :class:`DelayHistory`, serves every delayed loop of the package (the controlled chains
 of :mod:`ctmm.control.simulate` and the planar models of :mod:`ctmm.control.planar_time`).  It
 keeps only the samples a delay ``tau`` can reach -- a window of ``O(tau / dt)`` samples, trimmed
-when it reaches twice that length -- so its memory and its cost per step do not grow with the
-run length.  Two interpolations share the interface:
+when it reaches twice that length (with ``"hermite"`` never below the samples ``t - tau`` can still
+read, whatever the steps: a ``solve_ivp`` method may step shorter than the ``step`` the window is
+counted in) -- so its memory and its cost per step do not grow with the run length.  Two
+interpolations share the interface:
 
 * ``"hermite"`` (default): cubic Hermite between two stored steps from the values ``y`` and
   their time derivatives ``dy`` (exact on cubics, third order), or linear where a derivative is
@@ -74,6 +76,7 @@ class DelayHistory:
         self.start_value = _stored(start_value)
         self.before = self.start_value if before is None else before
         self.step = step
+        self.delay = delay
         self.interpolation = interpolation
         self.times = [start_time]
         self.values = [self.start_value]
@@ -111,8 +114,11 @@ class DelayHistory:
         self.derivatives.append(derivative)
         if len(self.times) > 2 * self.keep:
             drop = len(self.times) - self.keep
-            del self.times[:drop], self.values[:drop], self.derivatives[:drop]
-            self.first_index += drop
+            if self.interpolation == "hermite":     # steps shorter than `step` (solve_ivp): keep what t - delay reads
+                drop = min(drop, max(bisect.bisect_right(self.times, time - self.delay) - 2, 0))
+            if 2 * drop >= len(self.times):         # at least half at a time: O(1) per sample
+                del self.times[:drop], self.values[:drop], self.derivatives[:drop]
+                self.first_index += drop
 
     def __call__(self, time: float) -> Any:
         """Value at ``time`` [s] (see the module docstring for the rules)."""

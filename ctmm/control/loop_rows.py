@@ -85,6 +85,22 @@ def rows_result(rows: LoopRows, outputs: Sequence[str], method: str, info: dict)
     return signal_result(SignalSystem(model, units, [lp.loop for lp in system.loops]), t, signals, method, info)
 
 
+
+def empty_result(plant: Any, model: Any, loops: Sequence[Any], outputs: Sequence[str], method: str,
+                 info: dict) -> SimulationResult:
+    """The result of a run that stored no row (a controller's ``init`` failed): the signals :func:`rows_result`
+    gives -- the plant's, ``outputs``, each of the Feedback ``loops``' ``"<loop>.y"``, ``"<loop>.u"`` (with
+    saturation ``.u_demand``, ``.saturated``) -- each with no value."""
+    signals, units = plant.signals(np.zeros(0), np.zeros((0, plant.n_positions)), np.zeros((0, plant.n_velocities)),
+                                   outputs)
+    for loop in loops:
+        for part in ("y", "u") + (("u_demand", "saturated") if loop.saturation is not None else ()):
+            signals[f"{loop.name}.{part}"] = np.zeros(0)
+            units[f"{loop.name}.{part}"] = "" if part == "saturated" else \
+                loop_unit(plant.ports, loop, "u" if part == "u_demand" else part)
+    return signal_result(SignalSystem(model, units, list(loops)), np.zeros(0), signals, method, info)
+
+
 def _saturation_signals(lp: Any, z: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The unsaturated demand ``-C z - D e`` of a saturating loop on the stored rows [actuator unit]
     and where it is beyond the limits (the applied ``"<loop>.u"`` is at a limit there)."""

@@ -65,13 +65,12 @@ from ..planar.integrate import SCIPY_METHODS
 from ..planar.signals import signal_values
 from ..results import SimulationResult
 from ..schemes import SCHEMES, Scheme, as_scheme
-from ..signal_results import SignalSystem, signal_result
 from ..signals import as_signal
 from .cosim import CoSimulation
 from .explicit_loops import run_rk4, run_scipy
 from .history import DelayHistory
 from .implicit_loops import check_scheme_delays, run_implicit
-from .loop_rows import LoopRows, rows_result
+from .loop_rows import LoopRows, empty_result, rows_result
 from .plants import Plant, plant_of
 
 __all__ = ["controller_realisation", "simulate_closed_loop"]
@@ -523,6 +522,9 @@ def simulate_closed_loop(model: Any, q0: np.ndarray, qdot0: np.ndarray, t_final:
                          f"{tuple(sorted(SCHEMES))} for a planar model with loops, controllers or inputs, "
                          f"got {method!r}")
     fixed = method == "rk4" or scheme is not None
+    if not fixed and store_every != 1:
+        raise ModelError(f"store_every={store_every!r} applies to fixed-step methods; with {method!r} give dt to "
+                         "store the result on the grid k dt (leave store_every at 1)")
     t_final = validation.positive("t_final", t_final)
     projection = validation.flag("projection", projection)
     if dt is not None:
@@ -554,11 +556,8 @@ def simulate_closed_loop(model: Any, q0: np.ndarray, qdot0: np.ndarray, t_final:
         system = _ClosedLoop(plant, resolved, controllers, inputs or {}, references or {}, dt, coupling,
                              history_step=max(history_step, 1e-300))
     except SimulationError as exc:     # a controller's init failed: nothing was simulated
-        def empty() -> SimulationResult:
-            signals, units = plant.signals(np.zeros(0), np.zeros((0, n)), np.zeros((0, nv)), outputs)
-            return signal_result(SignalSystem(model, units, loops), np.zeros(0), signals, label, {"dt": dt})
-
-        raise with_partial(exc, empty) from exc.__cause__
+        raise with_partial(exc, lambda: empty_result(plant, model, loops, outputs, label, {"dt": dt})) \
+            from exc.__cause__
     try:
         y0 = np.concatenate([q0, qdot0, np.zeros(system.size - n - nv)])
         guard = plant.guard(q0, divergence_bound, qdot0)

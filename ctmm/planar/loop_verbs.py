@@ -35,6 +35,7 @@ from .. import validation
 from ..controlled_linearization import delayed_loop_response
 from ..errors import ModelError, SimulationError
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
+from ..ode import output_grid
 from ..results import FrequencyResponse, ModalResult, SimulationResult
 from ..schemes import SCHEMES, Scheme, as_scheme
 from ..signal_results import SignalSystem, signal_result
@@ -212,7 +213,7 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
     grid = None
     if dt is not None:
         h = validation.positive("dt", dt)
-        grid = np.linspace(0.0, t_final, max(1, int(round(t_final / h))) + 1)
+        grid = output_grid(0.0, t_final, h)
     with _partial_as_result(model, outputs, {"dt": dt, "projection": False}):
         run = simulate_kinematic_loops(model, q0, v0, t_final=t_final, method=method, rtol=rtol, atol=atol,
                                        t_eval=grid, max_step=np.inf if max_step is None else

@@ -17,6 +17,7 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError, SimulationError
 from ..loop_integration import StepProjection, check_consistent, integrate_loop_run
+from ..ode import output_grid
 from ..results import SimulationResult
 from ..schemes import Scheme
 from .closed_loops import SpatialKinematicLoopModel
@@ -127,8 +128,7 @@ def simulate_spatial_loops(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *
     def check(t: float, y: np.ndarray) -> None:
         guard(t, y, method)
 
-    grid = None if method == "rk4" or dt is None else \
-        np.linspace(0.0, t_final, max(1, int(round(t_final / dt))) + 1)
+    grid = None if method == "rk4" or dt is None else output_grid(0.0, t_final, dt)
     return integrate_loop_run(
         lambda t, q_rows, v_rows, wall: _history(model, t, q_rows, v_rows, inputs, method, wall, evaluations[0]),
         rate, np.concatenate([q, v]), nq, t_final=t_final, dt=dt, method=method, finish=finish, rtol=rtol, atol=atol,

@@ -15,7 +15,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError, SimulationError, unknown_name
-from ..ode import rk4_step
+from ..ode import output_grid, rk4_step
 from ..results import SimulationResult
 from ..signal_results import SignalSystem, signal_result
 from .body_forms import SpatialScene
@@ -300,7 +300,7 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
         info = {"rtol": rtol, "atol": atol}
         if dt is not None:
             dt = validation.positive("dt", dt)
-            grid = np.linspace(0.0, t_final, int(round(t_final / dt)) + 1)
+            grid = output_grid(0.0, t_final, dt)
             info["dt"] = dt
         options = {} if max_step is None else {"max_step": validation.positive("max_step", max_step)}
         try:
