@@ -168,3 +168,15 @@ def test_the_dynamics_functions_refuse_what_is_not_a_spatial_model(call, other) 
     """Was: ``energy`` read ``model.check_state`` first and failed with AttributeError."""
     with pytest.raises(ModelError, match="model must be a ctmm.spatial.SpatialModel, got"):
         call(other)
+
+
+@pytest.mark.parametrize("method", ["rk4", "newmark", "RK45"])
+@pytest.mark.parametrize("value", ["2", "abc", True, 1j, lambda t: "1"])
+def test_joint_input_that_is_not_a_real_number_is_refused_by_name(method: str, value: object) -> None:
+    """A string, boolean or complex joint input is refused by name on the numpy paths, as the generated path and
+    the port inputs refuse it (``"2"`` and ``True`` were run as 2 N m and 1 N m, ``"abc"`` a bare ValueError)."""
+    import ctmm
+    model = sp.SpatialModel("m", [sp.SpatialBody("a", 1.0, (1, 1, 1)),
+                                  sp.Revolute(name="yaw", parent=None, child="a", actuated=True)])
+    with pytest.raises(ModelError, match=r"input 'yaw\.torque' must be 1 finite number\(s\)"):
+        ctmm.simulate(model, 0.01, 1e-3, method=method, inputs={"yaw.torque": value}, compiled=False)

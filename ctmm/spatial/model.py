@@ -326,12 +326,13 @@ def input_values(model: SpatialModel, inputs: Mapping[str, object] | None, t: fl
             value = inputs.get(name, np.zeros(k))
             if callable(value):
                 value = value(t)
-            array = np.asarray(value, dtype=float)
+            raw = np.asarray(value)                # a string, boolean or complex number is not a real input
+            array = np.asarray(value, dtype=float) if raw.dtype.kind in "iuf" else np.array(np.nan)
             if array.ndim == 0:
                 array = np.full(k, float(array)) if k == 1 else array
             if array.shape[-1:] != (k,) or not np.all(np.isfinite(array)):
                 raise ModelError(f"input {name!r} must be {k} finite number(s) (or (B, {k})) at t = {t} s, got "
-                                 f"{np.asarray(value).tolist()}")
+                                 f"{raw.tolist()!r}")
             out[name] = np.broadcast_to(array, (batch, k))
     return out
 
