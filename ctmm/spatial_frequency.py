@@ -129,7 +129,18 @@ class SpatialModes:
         def side(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
             return self.determinant_sign(lower) != self.determinant_sign(upper * (1.0 - 1e-12))
 
-        return certified_count(self.raw, omega, tolerance=PIVOT_TOLERANCE, side=side)
+        counted = certified_count(self.raw, omega, tolerance=PIVOT_TOLERANCE, side=side)
+        # Below half the lowest non-zero frequency only the rigid-body modes (omega = 0, told apart from modes
+        # within their round-off as solve() does) can lie below omega: the Sylvester count there reads the sign
+        # of K's round-off along them (the symmetric arm of docs/spatial.md §9 counted 2 at omega = 0 and 1 at
+        # 1e-9 rad/s).  solve() certifies that count at its lowest probe, 0.5 * lowest.
+        values, _, noise = rayleigh_modes(self.stiffness, self.mass)
+        rigid = np.abs(values) <= noise
+        flexible = values[~rigid]
+        if not np.any(flexible <= 0.0):
+            low = omega < 0.5 * np.sqrt(np.min(flexible, initial=np.inf))
+            counted[low] = np.where(omega[low] > 0.0, int(np.sum(rigid)), 0)
+        return counted
 
     def solve(self, verb: str) -> tuple[np.ndarray, np.ndarray]:
         """Natural frequencies [rad/s] ascending (rigid-body modes 0) and M-orthonormal shapes, certified

@@ -224,12 +224,23 @@ def static_equilibrium(model: Any, t: float = 0.0, start: Any = None, *, stable:
     Raises
     ------
     ModelError
-        A free joint under gravity; no convergence (no equilibrium near ``start``, or loads that
+        A ``start`` that is not one configuration (sizes, finite values, non-zero quaternions) or a
+        non-finite ``t``; a free joint under gravity; no convergence (no equilibrium near ``start``, or loads that
         keep a body moving); with ``stable=True`` an equilibrium reached that is still unstable (its
         unstable directions named).
     """
     _require_model(model, "static_equilibrium")
     validation.flag("stable", stable)
+    t = validation.finite("t", t)
+    if start is not None:                      # one configuration: sizes, finite values, non-zero quaternions
+        try:
+            rows = model.check_state(start, np.zeros(model.n_velocities))[0]
+        except ModelError as exc:
+            raise ModelError(f"static_equilibrium: start: {exc}") from None
+        if rows.shape[0] != 1:
+            raise ModelError(f"static_equilibrium: start must be one configuration ({model.n_positions} coordinates "
+                             f"{model.coordinates}), got shape {np.shape(start)}")
+        start = rows[0]
     free = [joint.name for joint in model.joints if joint.kind == "free" and not joint.driven]
     if free and np.any(model.gravity != 0.0):
         raise ModelError(f"linearize: {model.name!r} has the free joint(s) {free} under gravity "

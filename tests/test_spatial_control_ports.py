@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import ctmm
 import ctmm.spatial as sp
 from ctmm.errors import ModelError, UnknownNameError
 from ctmm.reference.spatial_kinematics import kinematics, point_jacobian
@@ -193,3 +194,14 @@ def test_refusals_name_what_is_allowed() -> None:
                                    sp.Weld(name="w", parent="a", child="b")])
     with pytest.raises(ModelError, match="welded"):
         ports.SpatialPorts(welded).check_actuator("w.torque")
+
+
+def test_misspelt_input_of_an_actuated_joint_is_not_called_unactuated() -> None:
+    """A wrong component name on an actuated joint names the joint's actuators instead of telling the user to
+    declare ``actuated=True``, which it already is."""
+    model = sp.SpatialModel("m", [sp.SpatialBody("a", 1.0, (1, 1, 1)),
+                                  sp.Revolute(name="yaw", parent=None, child="a", actuated=True)])
+    with pytest.raises(ModelError, match=r"input 'yaw\.torq': joint 'yaw' has no actuator of that name; "
+                                         r"the actuators of 'yaw' are \['yaw\.torque'\]") as caught:
+        ctmm.simulate(model, 0.01, 1e-3, inputs={"yaw.torq": 1.0})
+    assert "actuated=True" not in str(caught.value)

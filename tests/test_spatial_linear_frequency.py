@@ -120,3 +120,18 @@ def test_damped_unstable_and_wrong_options_are_refused() -> None:
                                 fields="exact")
     with pytest.raises(ModelError, match="n_modes"):
         ctmm.natural_frequencies(symmetric_pendulum(), n_modes=4)
+
+
+def test_count_below_the_lowest_mode_is_the_rigid_body_modes() -> None:
+    """The arm of docs/spatial.md §9 has two rigid-body modes (a free yaw, the hanging link's spin about the
+    vertical) and the link's swing at 5.82 rad/s: nothing lies strictly below omega = 0 and exactly those two
+    lie below any small omega > 0 (the planar and chain counts agree).  The Sylvester count read the sign of the
+    round-off of K along them: 2 at omega = 0, 1 at 1e-9 rad/s."""
+    arm = sp.SpatialModel("arm", [
+        sp.SpatialBody("base", 2.0, (0.02, 0.02, 0.01), center_of_mass=(0, 0, 0.1), points={"top": (0, 0, 0.2)}),
+        sp.SpatialBody("link", 1.0, (0.01, 0.01, 0.002), center_of_mass=(0.25, 0, 0), points={"tip": (0.5, 0, 0)}),
+        sp.Revolute(name="yaw", parent=None, child="base", axis=(0, 0, 1), actuated=True),
+        sp.Spherical(name="ball", parent="base", point="top", child="link")], gravity=(0, 0, -9.81))
+    swing = np.sqrt(1.0 * 9.81 * 0.25 / (0.01 + 1.0 * 0.25 ** 2))        # the link's swing, m g l / (I + m l^2)
+    counts = ctmm.eigenvalue_count(arm, [0.0, 1e-12, 1e-9, 1e-6, 1e-3, 1.0, 0.5 * swing])
+    np.testing.assert_array_equal(counts, [0, 2, 2, 2, 2, 2, 2])

@@ -168,3 +168,51 @@ def test_the_dynamics_functions_refuse_what_is_not_a_spatial_model(call, other) 
     """Was: ``energy`` read ``model.check_state`` first and failed with AttributeError."""
     with pytest.raises(ModelError, match="model must be a ctmm.spatial.SpatialModel, got"):
         call(other)
+
+
+@pytest.mark.parametrize("method", ["rk4", "newmark", "RK45"])
+@pytest.mark.parametrize("value", ["2", "abc", True, 1j, lambda t: "1"])
+def test_joint_input_that_is_not_a_real_number_is_refused_by_name(method: str, value: object) -> None:
+    """A string, boolean or complex joint input is refused by name on the numpy paths, as the generated path and
+    the port inputs refuse it (``"2"`` and ``True`` were run as 2 N m and 1 N m, ``"abc"`` a bare ValueError)."""
+    import ctmm
+    model = sp.SpatialModel("m", [sp.SpatialBody("a", 1.0, (1, 1, 1)),
+                                  sp.Revolute(name="yaw", parent=None, child="a", actuated=True)])
+    with pytest.raises(ModelError, match=r"input 'yaw\.torque' must be 1 finite number\(s\)"):
+        ctmm.simulate(model, 0.01, 1e-3, method=method, inputs={"yaw.torque": value}, compiled=False)
+
+
+def _yaw_arm() -> sp.SpatialModel:
+    return sp.SpatialModel("arm", [
+        sp.SpatialBody("base", 2.0, (0.02, 0.02, 0.01), center_of_mass=(0, 0, 0.1), points={"top": (0, 0, 0.2)}),
+        sp.SpatialBody("link", 1.0, (0.01, 0.01, 0.002), center_of_mass=(0.25, 0, 0)),
+        sp.Revolute(name="yaw", parent=None, child="base", axis=(0, 0, 1), actuated=True),
+        sp.Spherical(name="ball", parent="base", point="top", child="link")], gravity=(0, 0, -9.81))
+
+
+def test_batches_of_different_sizes_are_refused_by_name() -> None:
+    """q and v of 2 and 3 rows, or a joint input of 3 rows for a batch of 2, are refused with a ModelError naming
+    the sizes (were bare numpy broadcasting errors); one row against a batch still broadcasts."""
+    model = _yaw_arm()
+    q, v = np.tile(model.neutral(), (2, 1)), np.zeros((3, model.n_velocities))
+    with pytest.raises(ModelError, match=r"arm: q and v must hold as many states \(rows\) or one of them one, got 2 "
+                                         r"and 3"):
+        sp.accelerations(model, q, v)
+    with pytest.raises(ModelError, match=r"input 'yaw\.torque' must be 1 finite number\(s\) \(or \(B, 1\)\)"):
+        sp.accelerations(model, q, v[:2], inputs={"yaw.torque": np.ones((3, 1))})
+    one = sp.accelerations(model, q[:1], v[:1], inputs={"yaw.torque": 1.0})
+    np.testing.assert_array_equal(sp.accelerations(model, q, v[:1], inputs={"yaw.torque": [[1.0]]}), np.tile(one, (2, 1)))
+
+
+def test_static_equilibrium_start_and_time_are_checked() -> None:
+    """A start of the wrong size was a TypeError from inside the quaternion algebra, t = nan was accepted."""
+    from ctmm.spatial_linearization import static_equilibrium
+    model = _yaw_arm()
+    with pytest.raises(ModelError, match=r"static_equilibrium: start: arm: q must have 5 entries"):
+        static_equilibrium(model, start=[1.0, 2.0])
+    with pytest.raises(ModelError, match=r"static_equilibrium: start must be one configuration"):
+        static_equilibrium(model, start=np.tile(model.neutral(), (2, 1)))
+    with pytest.raises(ModelError, match=r"t must be finite"):
+        static_equilibrium(model, t=float("nan"))
+    with pytest.raises(ModelError, match=r"quaternion of joint 'ball' is zero"):
+        static_equilibrium(model, start=[0.0, 0.0, 0.0, 0.0, 0.0])

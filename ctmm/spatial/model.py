@@ -256,7 +256,9 @@ class SpatialModel:
             q_rows = q[None] if q.ndim == 1 else q
             v_rows = v[None] if v.ndim == 1 else v
             if (q_rows.ndim == 2 and v_rows.ndim == 2 and q_rows.shape[1] == self.n_positions
-                    and v_rows.shape[1] == self.n_velocities and math.isfinite(q_rows.sum() + v_rows.sum())):
+                    and v_rows.shape[1] == self.n_velocities
+                    and (len(q_rows) == len(v_rows) or len(q_rows) == 1 or len(v_rows) == 1)
+                    and math.isfinite(q_rows.sum() + v_rows.sum())):
                 if not len(self._quaternion_columns) or not len(q_rows):
                     return q_rows, v_rows
                 blocks = q_rows[:, self._quaternion_columns]            # (B, k, 4)
@@ -276,6 +278,9 @@ class SpatialModel:
         if v.ndim != 2 or v.shape[1] != self.n_velocities:
             raise ModelError(f"{self.name}: v must have {self.n_velocities} entries {self.velocities} (or be (B, "
                              f"{self.n_velocities})), got shape {v.shape}: {given_v!r:.80}")
+        if q.shape[0] != v.shape[0] and 1 not in (q.shape[0], v.shape[0]):
+            raise ModelError(f"{self.name}: q and v must hold as many states (rows) or one of them one, got "
+                             f"{q.shape[0]} and {v.shape[0]}")
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
             raise ModelError(f"{self.name}: q and v must be finite, got q={q.tolist()}, v={v.tolist()}")
         for joint, layout in zip(self._joints, self.layout):
@@ -326,12 +331,14 @@ def input_values(model: SpatialModel, inputs: Mapping[str, object] | None, t: fl
             value = inputs.get(name, np.zeros(k))
             if callable(value):
                 value = value(t)
-            array = np.asarray(value, dtype=float)
+            raw = np.asarray(value)                # a string, boolean or complex number is not a real input
+            array = np.asarray(value, dtype=float) if raw.dtype.kind in "iuf" else np.array(np.nan)
             if array.ndim == 0:
                 array = np.full(k, float(array)) if k == 1 else array
-            if array.shape[-1:] != (k,) or not np.all(np.isfinite(array)):
+            if array.shape[-1:] != (k,) or array.ndim > 2 or (array.ndim == 2 and array.shape[0] not in (1, batch)) \
+                    or not np.all(np.isfinite(array)):
                 raise ModelError(f"input {name!r} must be {k} finite number(s) (or (B, {k})) at t = {t} s, got "
-                                 f"{np.asarray(value).tolist()}")
+                                 f"{raw.tolist()!r}")
             out[name] = np.broadcast_to(array, (batch, k))
     return out
 

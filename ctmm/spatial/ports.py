@@ -301,6 +301,7 @@ class SpatialPorts(NamedPorts):
                 joint = joints[head]
                 reason = ("is driven (its motion is prescribed)" if joint.driven else
                           "is welded (it has no free direction)" if joint.kind == "weld" else
+                          "has no actuator of that name" if joint.inputs else
                           "is not actuated: declare it with actuated=True to give it an input")
                 raise ModelError(f"{what} {name!r}: joint {head!r} {reason}; the actuators of {head!r} are "
                                  f"{[a for a in self.actuators if a.startswith(head + '.')]}")
