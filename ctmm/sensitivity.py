@@ -139,12 +139,12 @@ def with_parameters(system: Any, values: Mapping[str, float]) -> Any:
             continue
         j = chain.position(head)
         element = copy.copy(elements[j])
-        if value < 0.0 or (tail == "mass" and value == 0.0 and type(element).__name__ == "Mass"):
-            raise ModelError(f"parameter {p.name!r} = {value!r}: a {tail} must be "
-                             f"{'> 0' if tail == 'mass' else '>= 0'}")
+        positive = (tail == "mass" and type(element).__name__ == "Mass") or tail == "inertance"
+        if value < 0.0 or (positive and value == 0.0):
+            raise ModelError(f"parameter {p.name!r} = {value!r}: a {tail} must be {'> 0' if positive else '>= 0'}")
         element.__dict__[tail] = value
         lumped = getattr(element, "stiffness", 0.0), getattr(element, "damping", 0.0)
-        if not element.is_point and lumped == (0.0, 0.0):
+        if not element.is_point and type(element).__name__ != "Inerter" and lumped == (0.0, 0.0):
             raise ModelError(f"parameter {p.name!r} = {value!r}: connector {head!r} needs stiffness > 0 or "
                              "damping > 0")
         element.derive_forms()
