@@ -298,8 +298,12 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
                    "atol": (atol, 1e-10), "max_step": (max_step, None), "store_every": (store_every, 1)}
     for name, (value, default) in planar_only.items():
         if value != default:
-            raise ModelError(f"{name}={value!r} applies to planar models only; a chain stores every signal and "
-                             f"takes loads and prescribed motions from its elements (leave {name} at {default!r})")
+            elsewhere = {"inputs": "a chain's ODE methods ('rk4', solve_ivp) take inputs", "store_every":
+                         "method='rk4' takes store_every", **{key: f"its solve_ivp methods take {key}"
+                                                              for key in ("rtol", "atol", "max_step")}}
+            raise ModelError(f"{name}={value!r} does not apply to the DT-TMM stepper of a chain (method={chosen!r}: it "
+                             "stores every signal and takes loads and prescribed motions from its elements"
+                             f"{'; ' + elsewhere[name] if name in elsewhere else ''}); leave {name} at {default!r}")
     if dt is None:
         raise ModelError("dt is required to simulate a chain (the DT-TMM step [s], > 0), got None")
     controlled = isinstance(system, ControlledChain) or bool(controllers) or bool(references)
@@ -327,6 +331,7 @@ def _simulate_chain_ode(system: Any, t_final: float, dt: float | None, *, method
     or actuator ``inputs``, by the one loop-closing driver (:func:`simulate_closed_loop` on a
     :class:`~ctmm.control.chain_plant.ChainPlant`)."""
     loops = system.loops if isinstance(system, ControlledChain) else ()
+    _refuse_adaptive_options(method, rtol, atol, max_step)
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r}")
     inputs, references = split_loop_references(loops, inputs, references)
@@ -364,6 +369,16 @@ def _simulate_chain_ode(system: Any, t_final: float, dt: float | None, *, method
                                 rtol=rtol, atol=atol, max_step=math.inf if max_step is None else max_step,
                                 store_every=store_every, progress=progress, stability_check=policy,
                                 divergence_bound=divergence_bound)
+
+
+def _refuse_adaptive_options(method: Any, rtol: Any, atol: Any, max_step: Any) -> None:
+    """Refuse, by name, ``rtol``, ``atol`` or ``max_step`` other than their defaults with a method that is not a
+    ``solve_ivp`` one (a fixed-step run would ignore them)."""
+    adaptive_only = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
+    for name, (value, default) in adaptive_only.items():
+        if value != default and method not in SCIPY_METHODS:
+            raise ModelError(f"{name}={value!r} applies to the solve_ivp methods {SCIPY_METHODS}, not to "
+                             f"method={method!r} (leave {name} at {default!r})")
 
 
 def _simulate_chain_generated(system: Any, t_final: float, dt: float | None, *, method: Any, x0: Any, v0: Any,
@@ -494,11 +509,7 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
         raise ModelError(f"compiled=True runs the generated RK4 of a planar model with its loops, inputs, references "
                          f"and controllers, or a generated DT-TMM scheme with them; got method={method!r} "
                          "(leave compiled at None)")
-    adaptive_only = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
-    for name, (value, default) in adaptive_only.items():
-        if value != default and method not in SCIPY_METHODS:
-            raise ModelError(f"{name}={value!r} applies to the solve_ivp methods {SCIPY_METHODS}, not to "
-                             f"method={method!r} (leave {name} at {default!r})")
+    _refuse_adaptive_options(method, rtol, atol, max_step)
     if store_every != 1 and method in SCIPY_METHODS:
         raise ModelError(f"store_every={store_every!r} applies to fixed-step methods; with {method!r} give dt "
                          "to store the result on the grid k dt (leave store_every at 1)")
