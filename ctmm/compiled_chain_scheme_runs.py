@@ -154,7 +154,8 @@ def check_scheme_options(dt: float | None, options: Mapping[str, tuple]) -> None
     generated DT-TMM step of a chain (any value but the default), and a missing ``dt``."""
     for name, (value, default) in options.items():
         if value is not default and value != default:
+            other = "an ODE method ('rk4' or a solve_ivp one)" if name == "inputs" else "compiled=False"
             raise ModelError(f"{name}={value!r} does not apply to the generated DT-TMM step of a chain (leave {name} "
-                             f"at {default!r}, or use compiled=False)")
+                             f"at {default!r}, or use {other})")
     if dt is None:
         raise ModelError("dt is required to simulate a chain (the DT-TMM step [s], > 0), got None")

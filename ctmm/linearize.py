@@ -174,6 +174,7 @@ def _linearize_chain(system: Any, inputs, outputs) -> LinearizedSystem:
     import control
 
     from .control.loops import actuator_inputs
+    from .controlled_linearization import requested_outputs
 
     controlled = not isinstance(system, Chain)
     loops = tuple(system.loops) if controlled else ()
@@ -187,8 +188,7 @@ def _linearize_chain(system: Any, inputs, outputs) -> LinearizedSystem:
         if name.partition(".")[0] in delayed_names:
             raise ModelError(f"linearize: input {name!r} belongs to the delayed loop "
                              f"{name.partition('.')[0]!r}, whose force is the input '<loop>_u' already")
-    req = [name for name in req if not (name.partition(".")[0] in delayed_names
-                                        and name.partition(".")[2] in ("y", "u"))]
+    requested_outputs(delayed, req, ())    # refuses a delayed loop's '.y', '.u' (its ports), as planar models do
     forces = {lp.name: actuator_inputs(system, lp.name) for lp in delayed}
     sensors = {lp.name: lp.terms for lp in delayed}
     all_in = list(dict.fromkeys(exo + [n for lp in delayed for n, _ in forces[lp.name]]))

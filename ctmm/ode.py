@@ -18,7 +18,7 @@ import numpy as np
 
 from .errors import ModelError
 
-__all__ = ["rk4_step", "integrate_rk4", "second_order_rate"]
+__all__ = ["rk4_step", "integrate_rk4", "second_order_rate", "output_grid", "refuse_adaptive_options"]
 
 #: ``f(t, y) -> y'``: rate of a vector state at time ``t`` [s].
 Rate = Callable[[float, np.ndarray], np.ndarray]
@@ -116,3 +116,20 @@ def output_grid(t0: float, t_final: float, dt: float) -> np.ndarray:
     elif grid[-1] < t_final:
         grid = np.append(grid, t_final)
     return grid
+
+
+def refuse_adaptive_options(method: object, methods: tuple[str, ...], rtol: float, atol: float,
+                            max_step: float | None) -> None:
+    """Refuse, by name, ``rtol``, ``atol`` or ``max_step`` [s] other than :func:`ctmm.simulate`'s defaults
+    (``1e-8``, ``1e-10``, ``None``) with a ``method`` that is not one of the ``solve_ivp`` ``methods``: a
+    fixed-step run would ignore them.
+
+    Raises
+    ------
+    ModelError
+        Naming the option, its value, the methods it applies to and the default to leave it at.
+    """
+    for name, (value, default) in {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}.items():
+        if value != default and method not in methods:
+            raise ModelError(f"{name}={value!r} applies to the solve_ivp methods {methods}, not to "
+                             f"method={method!r} (leave {name} at {default!r})")

@@ -139,12 +139,12 @@ def with_parameters(system: Any, values: Mapping[str, float]) -> Any:
             continue
         j = chain.position(head)
         element = copy.copy(elements[j])
-        if value < 0.0 or (tail == "mass" and value == 0.0 and type(element).__name__ == "Mass"):
-            raise ModelError(f"parameter {p.name!r} = {value!r}: a {tail} must be "
-                             f"{'> 0' if tail == 'mass' else '>= 0'}")
+        positive = (tail == "mass" and type(element).__name__ == "Mass") or tail == "inertance"
+        if value < 0.0 or (positive and value == 0.0):
+            raise ModelError(f"parameter {p.name!r} = {value!r}: a {tail} must be {'> 0' if positive else '>= 0'}")
         element.__dict__[tail] = value
         lumped = getattr(element, "stiffness", 0.0), getattr(element, "damping", 0.0)
-        if not element.is_point and lumped == (0.0, 0.0):
+        if not element.is_point and type(element).__name__ != "Inerter" and lumped == (0.0, 0.0):
             raise ModelError(f"parameter {p.name!r} = {value!r}: connector {head!r} needs stiffness > 0 or "
                              "damping > 0")
         element.derive_forms()
@@ -558,9 +558,9 @@ def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_fi
     """Outputs of an RK4 run of a planar or spatial model (loops closed: real-time, LTI, delayed) or of a
     lumped chain (free response) and their exact derivatives with respect to plant and loop numbers.
 
-    Planar models: forward sensitivities of the generated RK4 step by casadi
-    (:func:`ctmm.sensitivity_time.planar_simulation_sensitivity`: ``q0``, ``qdot0``, outputs
-    ``"<coordinate>"`` / ``"<coordinate>_dot"``); spatial models: the same on the generated spatial step
+    Planar models: forward sensitivities of the generated RK4 step by casadi (:func:`ctmm.sensitivity_time.
+    planar_simulation_sensitivity`: arrays ``q0``, ``qdot0`` or ``x0``, ``v0`` as :func:`ctmm.simulate` takes
+    them, outputs ``"<coordinate>"`` / ``"<coordinate>_dot"``); spatial models: the same on the generated spatial step
     (:func:`ctmm.sensitivity_time_spatial.spatial_simulation_sensitivity`: ``x0``, ``v0`` as
     :func:`ctmm.simulate` takes them, outputs coordinates, velocities and sensor ports); loop numbers
     (``"<loop>.gain"``, ``"<loop>.<sensor>"``, realisation entries ``"<loop>.A[i,j]"``...) as directions in the
@@ -578,13 +578,14 @@ def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_fi
     """
     from .sensitivity_planar import is_planar_system
     from .sensitivity_spatial import is_spatial_system
-    from .sensitivity_time import chain_forced, chain_simulation_sensitivity, planar_simulation_sensitivity
+    from .sensitivity_time import chain_forced, chain_simulation_sensitivity, planar_simulation_sensitivity as planar
+    from .sensitivity_time import simulation_start
     from .sensitivity_time_chain import controlled_chain_simulation_sensitivity
-    from .sensitivity_time_spatial import spatial_simulation_sensitivity
+    from .sensitivity_time_spatial import spatial_simulation_sensitivity as spatial
 
+    q0, qdot0 = simulation_start(system, q0, qdot0, x0, v0, is_planar_system(system))
     if is_spatial_system(system):
-        return spatial_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0,
-                                              outputs=outputs)
+        return spatial(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0, outputs=outputs)
     if isinstance(system, ControlledChain) or isinstance(system, Chain) and chain_forced(system):
         controlled = system if isinstance(system, ControlledChain) else ControlledChain(system, [])   # loaded chain
         return controlled_chain_simulation_sensitivity(controlled, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0,
@@ -596,5 +597,4 @@ def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_fi
                          f"ctmm.Chain or ControlledChain of lumped elements and for planar and spatial models, alone "
                          f"or in a ControlledModel; {type(system).__name__} is not supported; use the frequency-"
                          "domain, margin and spectral-abscissa sensitivities of ctmm.sensitivity where they apply")
-    return planar_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, q0=q0, qdot0=qdot0,
-                                         outputs=outputs)
+    return planar(system, parameters, t_final=t_final, dt=dt, q0=q0, qdot0=qdot0, outputs=outputs)

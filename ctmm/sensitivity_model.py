@@ -35,6 +35,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .control.loops import ControlledChain, Feedback, actuator_inputs
+from .elements.inerter import Inerter
 from .errors import ModelError, unknown_name
 from .lumped_realisation import assemble_matrices
 from .system import Chain
@@ -54,7 +55,8 @@ class ParameterDerivative:
     name : str
         ``"m3.mass"``, ``"pd.gain"``, ``"pd.m6.v"``, ...
     kind : str
-        ``"mass"``, ``"damping"``, ``"stiffness"``, ``"gain"``, ``"delay"`` or ``"weight"``.
+        ``"mass"`` (an inerter's inertance too: ``s^2`` times its pattern), ``"damping"``, ``"stiffness"``,
+        ``"gain"``, ``"delay"`` or ``"weight"``.
     pattern : ndarray or None
         ``(n, n)`` constant matrix of an element number.
     loop : int
@@ -199,15 +201,17 @@ class LoopCharacteristicMatrix:
         if loop is not None:
             return loop
         element, j = self._element(head, "parameter")
-        allowed = ("mass", "damping", "stiffness") if element.is_point else ("damping", "stiffness")
-        if tail not in allowed or type(element).__name__ == "Inerter":
+        allowed = ("mass", "damping", "stiffness") if element.is_point else \
+            ("damping", "inertance", "stiffness") if isinstance(element, Inerter) else ("damping", "stiffness")
+        if tail not in allowed:
             raise unknown_name(f"differentiable number (parameter {name!r}) of {type(element).__name__} {head!r}", tail,
                                list(allowed))
         if element.is_point:
             d = self._unit(int(self.point_dof[j]))
         else:
             d = self._unit(int(self.point_dof[j])) - self._unit(int(self.point_dof[j - 1]))
-        return ParameterDerivative(name, tail, np.outer(d, d), -1, -1, float(getattr(element, tail)))
+        kind = "mass" if tail == "inertance" else tail      # an inertance b enters as s^2 b d d^T, as a mass
+        return ParameterDerivative(name, kind, np.outer(d, d), -1, -1, float(getattr(element, tail)))
 
     # -- loop pieces ---------------------------------------------------------------------------
     def controller(self, i: int, s: complex) -> tuple[complex, complex]:

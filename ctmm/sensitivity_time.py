@@ -33,7 +33,7 @@ from . import validation
 from .errors import ModelError, unknown_name
 
 __all__ = ["TimeSensitivity", "chain_forced", "chain_loads", "chain_prestressed", "chain_simulation_sensitivity",
-           "forward_sensitivities", "parameter_index", "planar_simulation_sensitivity"]
+           "forward_sensitivities", "parameter_index", "planar_simulation_sensitivity", "simulation_start"]
 
 
 @dataclass(frozen=True)
@@ -245,6 +245,33 @@ def chain_prestressed(chain: Any) -> bool:
     except ModelError:
         return False
     return bool(np.any(rest != 0.0))
+
+
+def simulation_start(system: Any, q0: Any, qdot0: Any, x0: Any, v0: Any, planar: bool) -> tuple[Any, Any]:
+    """``(q0, qdot0)`` of :func:`ctmm.sensitivity.simulation_sensitivity`: a planar run starts from the arrays
+    ``q0``, ``qdot0`` or from ``x0``, ``v0`` as :func:`ctmm.simulate` takes them (``{coordinate: value}`` or
+    arrays, 0 where left out); chains and spatial models start from ``x0``, ``v0`` only (``(None, None)``).
+
+    Raises
+    ------
+    ModelError
+        ``q0`` or ``qdot0`` for a chain or a spatial model, or both forms for a planar model (one would be
+        dropped).
+    """
+    given = {label: value for label, value in (("q0", q0), ("qdot0", qdot0)) if value is not None}
+    if given and not planar:
+        raise ModelError(f"simulation_sensitivity: q0 and qdot0 are the coordinate arrays of a planar model; a "
+                         f"{type(system).__name__} starts from x0 and v0 (as ctmm.simulate takes them), got "
+                         + ", ".join(f"{label}={value!r:.60}" for label, value in given.items()))
+    if given and (x0 is not None or v0 is not None):
+        raise ModelError(f"simulation_sensitivity: give the start as x0, v0 (as ctmm.simulate) or as the arrays q0, "
+                         f"qdot0, not both; got {' and '.join(given)} with x0={x0!r:.60}, v0={v0!r:.60}")
+    if given or not planar:
+        return q0, qdot0
+    from .planar.integrate import coordinate_values
+
+    plant = getattr(system, "plant", system)
+    return coordinate_values(plant, "x0", x0), coordinate_values(plant, "v0", v0)
 
 
 def chain_forced(chain: Any) -> bool:

@@ -31,7 +31,8 @@ the law force being linear in the number; certified by the one-sided secants agr
 Time-varying loads with a symbolic form (:mod:`ctmm.signals` Constant, Harmonic, Step, SquareWave) are force
 columns ``Fl_j s_j(t)`` of ``F`` (each certified independent of the numbers) on the step's time, as the generated
 chain RK4 states them.  Refused (:class:`~ctmm.errors.ModelError`, by name): loop delays, load signals that are
-Python callables, massless points, inerter numbers, what :class:`~ctmm.compiled_loops.ClosedLoops` refuses.
+Python callables, massless points, element numbers of a chain with an inerter between two moving points (its nodes'
+mass matrix not diagonal), what :class:`~ctmm.compiled_loops.ClosedLoops` refuses.
 """
 from __future__ import annotations
 

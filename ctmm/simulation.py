@@ -42,6 +42,7 @@ from .control.simulate import simulate_controlled
 from .compiled_default import default_refusal, is_size_refusal, note_size_refusal, run_default
 from .errors import ConvergenceError, ModelError, SimulationError, unknown_name
 from .guard import unstable_loops_hint
+from .ode import refuse_adaptive_options
 from .planar.closed_loops import KinematicLoopModel
 from .planar.guards import check_resolution
 from .planar.integrate import SCIPY_METHODS, PlanarSimulation, coordinate_values, initial_coordinates, to_result
@@ -298,8 +299,12 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
                    "atol": (atol, 1e-10), "max_step": (max_step, None), "store_every": (store_every, 1)}
     for name, (value, default) in planar_only.items():
         if value != default:
-            raise ModelError(f"{name}={value!r} applies to planar models only; a chain stores every signal and "
-                             f"takes loads and prescribed motions from its elements (leave {name} at {default!r})")
+            elsewhere = {"inputs": "a chain's ODE methods ('rk4', solve_ivp) take inputs", "store_every":
+                         "method='rk4' takes store_every", **{key: f"its solve_ivp methods take {key}"
+                                                              for key in ("rtol", "atol", "max_step")}}
+            raise ModelError(f"{name}={value!r} does not apply to the DT-TMM stepper of a chain (method={chosen!r}: it "
+                             "stores every signal and takes loads and prescribed motions from its elements"
+                             f"{'; ' + elsewhere[name] if name in elsewhere else ''}); leave {name} at {default!r}")
     if dt is None:
         raise ModelError("dt is required to simulate a chain (the DT-TMM step [s], > 0), got None")
     controlled = isinstance(system, ControlledChain) or bool(controllers) or bool(references)
@@ -327,6 +332,7 @@ def _simulate_chain_ode(system: Any, t_final: float, dt: float | None, *, method
     or actuator ``inputs``, by the one loop-closing driver (:func:`simulate_closed_loop` on a
     :class:`~ctmm.control.chain_plant.ChainPlant`)."""
     loops = system.loops if isinstance(system, ControlledChain) else ()
+    refuse_adaptive_options(method, SCIPY_METHODS, rtol, atol, max_step)
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r}")
     inputs, references = split_loop_references(loops, inputs, references)
@@ -494,11 +500,7 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
         raise ModelError(f"compiled=True runs the generated RK4 of a planar model with its loops, inputs, references "
                          f"and controllers, or a generated DT-TMM scheme with them; got method={method!r} "
                          "(leave compiled at None)")
-    adaptive_only = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
-    for name, (value, default) in adaptive_only.items():
-        if value != default and method not in SCIPY_METHODS:
-            raise ModelError(f"{name}={value!r} applies to the solve_ivp methods {SCIPY_METHODS}, not to "
-                             f"method={method!r} (leave {name} at {default!r})")
+    refuse_adaptive_options(method, SCIPY_METHODS, rtol, atol, max_step)
     if store_every != 1 and method in SCIPY_METHODS:
         raise ModelError(f"store_every={store_every!r} applies to fixed-step methods; with {method!r} give dt "
                          "to store the result on the grid k dt (leave store_every at 1)")

@@ -10,10 +10,11 @@ from . import validation
 from .control.planar_time import simulate_closed_loop
 from .control.protocol import split_loop_references
 from .errors import ModelError, unknown_name
+from .ode import refuse_adaptive_options
 from .results import SimulationResult
 from .schemes import SCHEMES, Scheme
 from .spatial.implicit import simulate_spatial_implicit
-from .spatial.integrate import initial_state, simulate_spatial
+from .spatial.integrate import SCIPY_METHODS, initial_state, simulate_spatial
 from .spatial.model import SpatialModel
 from .spatial.ports import SpatialPorts
 
@@ -39,6 +40,8 @@ def simulate_spatial_system(parts: tuple[SpatialModel, tuple], t_final: float, d
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} is not available for spatial models yet (runs start at t = 0); "
                              f"leave {name} at {default!r}")
+    if isinstance(method, str) and method == "rk4":      # the schemes' refusals below name the scheme
+        refuse_adaptive_options(method, SCIPY_METHODS, rtol, atol, max_step)
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r}")
     port_inputs = any(name not in model.inputs for name in inputs or {})

@@ -190,6 +190,23 @@ def test_refusals_name_the_reason_and_the_alternative():
         ctmm.simulate(plain, 1.0, 0.3, method="rk4")
 
 
+@pytest.mark.parametrize("option", [{"rtol": 1e-2}, {"atol": 1.0}, {"max_step": 1e-5}])
+def test_fixed_step_rk4_refuses_the_adaptive_options_as_planar_models_do(option):
+    """rtol, atol and max_step do not act on the fixed-step RK4: refused by name on a chain, with or without
+    loops, as on a planar model (a chain's RK4 ignored them silently, the run bit-identical to the default)."""
+    plain = ctmm.Chain("p", [Fixed("w"), Spring("k", 10.0), Mass("m", 1.0), Free("e")])
+    controlled = ControlledChain(plain, [Feedback("pd", "m.v", "m", gain=0.5)])
+    (name, value), = option.items()
+    for system in (plain, controlled):
+        with pytest.raises(ModelError, match=f"{name}=.* applies to the solve_ivp methods.*not to method='rk4'"):
+            ctmm.simulate(system, 0.1, 0.01, method="rk4", x0={"m": 0.01}, **option)
+    with pytest.raises(ModelError, match=f"{name}=.* DT-TMM stepper of a chain.*solve_ivp methods take {name}"):
+        ctmm.simulate(plain, 0.1, 0.01, method="newmark", **option)
+    with pytest.raises(ModelError, match="inputs=.* DT-TMM stepper of a chain.*ODE methods .* take inputs"):
+        ctmm.simulate(plain, 0.1, 0.01, method="newmark", inputs={"m": Step(1.0, 0.0)})
+    ctmm.simulate(plain, 0.1, 0.01, method="RK45", x0={"m": 0.01}, **option)     # where they apply
+
+
 def test_a_diverging_run_stops_with_the_partial_result():
     chain = ctmm.Chain("p", [Fixed("w"), Spring("k", 1.0e6), Mass("m", 1.0), Free("e")])
     with pytest.raises(ctmm.SimulationError) as caught:

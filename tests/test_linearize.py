@@ -75,6 +75,11 @@ def test_chain_delayed_loop_is_returned_open_and_closes_to_the_reference():
         Z[2, 1] += g * s * np.exp(-s * tau)        # force on m3 = -g e^{-s tau} v2
         exact = np.linalg.solve(Z, np.eye(3)[:, 1])[2]
         assert abs(closed - exact) <= 1e-11 * abs(exact)
+    # the delayed loop's signals are its open ports: asked for as outputs they are refused by name, as on planar
+    # models (a chain dropped 'slow.u' silently: the state space came back without the requested loop force)
+    for name in ("slow.u", "slow.y"):
+        with pytest.raises(ctmm.ModelError, match=f"output '{name}': the delayed loop 'slow' is left open"):
+            ctmm.linearize(ctmm.control.ControlledChain(chain, [fast, slow]), outputs=["m3.x", name])
 
 
 def test_chain_refuses_an_operating_point_and_unknown_models():

@@ -185,7 +185,7 @@ def test_chains_keep_their_scheme_option_and_refuse_planar_options():
     np.testing.assert_array_equal(a.states, b.states)
     ode = ctmm.simulate(chain, 0.05, 1e-3, method="rk4", x0={"m": 0.01})      # ODE methods run chains too
     assert np.max(np.abs(ode["m.x"] - a["m.x"])) <= 1e-6
-    with pytest.raises(ModelError, match="outputs=.* applies to planar models only"):
+    with pytest.raises(ModelError, match="outputs=.* does not apply to the DT-TMM stepper of a chain"):
         ctmm.simulate(chain, 0.05, 1e-3, outputs=["m.x"])
     with pytest.raises(ModelError, match="dt is required to simulate a chain"):
         ctmm.simulate(chain, 0.05)

@@ -62,6 +62,24 @@ def test_double_pendulum_history_against_central_differences(name, value, builde
     assert np.max(np.abs(run.derivative[0] - difference)) < 1e-6 * np.max(np.abs(difference))
 
 
+def test_start_given_as_ctmm_simulate_takes_it_is_the_start_of_the_run():
+    """x0 / v0 by coordinate name, as ctmm.simulate takes them, start a planar run (they were dropped with q0
+    given, refused as 'q0 must be an array ..., got None' without it); q0 / qdot0, which a chain or spatial run
+    dropped silently (a chain with q0 = [0.3] ran from rest), are refused there by name."""
+    model = double_pendulum()
+    start, rates = {"upper.theta": -1.2, "lower.theta": -1.0}, {"lower.theta": 0.5}
+    run = S.simulation_sensitivity(model, ["upper.mass"], t_final=0.2, dt=1e-3, x0=start, v0=rates,
+                                   outputs=["lower.theta", "upper.theta_dot"])
+    sim = ctmm.simulate(model, t_final=0.2, dt=1e-3, method="rk4", x0=start, v0=rates)
+    assert np.max(np.abs(run.values - np.array([sim["lower.theta"], sim["upper.theta_dot"]]))) < 1e-12
+    with pytest.raises(ModelError, match="not both"):
+        S.simulation_sensitivity(model, ["upper.mass"], t_final=0.1, dt=0.01, q0=[-1.2, -1.0], x0=start)
+    chain = ctmm.Chain("c", [ctmm.elements.Fixed("w"), ctmm.elements.Spring("k", 10.0), ctmm.elements.Mass("m", 1.0),
+                             ctmm.elements.Free("e")])
+    with pytest.raises(ModelError, match="q0 and qdot0 are the coordinate arrays of a planar model.*got q0="):
+        S.simulation_sensitivity(chain, ["m.mass"], t_final=0.1, dt=0.01, q0=[0.3])
+
+
 def test_refusals():
     model = double_pendulum()
     with pytest.raises(ModelError, match="motor.damping.*is 0"):

@@ -256,6 +256,10 @@ def test_arguments_are_checked() -> None:
     model, _, _, _ = double_pendulum()
     with pytest.raises(ModelError, match="rtol"):
         ctmm.simulate(model, 1.0, 0.01, method="newmark", rtol=1e-3)
+    for option in ({"rtol": 1e-1}, {"atol": 1.0}, {"max_step": 1e-6}):     # were ignored by the fixed-step RK4
+        for compiled in (False, True):
+            with pytest.raises(ModelError, match=f"{next(iter(option))}=.* applies to the solve_ivp.*method='rk4'"):
+                ctmm.simulate(model, 0.1, 0.01, method="rk4", compiled=compiled, **option)
     with pytest.raises(ModelError, match="dt is required"):
         ctmm.simulate(model, 1.0, None, method="houbolt")
     with pytest.raises(ModelError, match="whole multiple"):
