@@ -164,7 +164,10 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
                                                    if joint.velocity_count == 1]
     # spatial port actuators (beam station and body-axis forces and moments) are inputs of the step with loops only
     ported = not planar and not kinematic and compiled is None and any(name not in joint_inputs for name in held)
-    looped = bool(loops) or bool(references) or ported or kinematic
+    # open-loop inputs that are functions of time (ctmm.signals) are stated on the step's time symbol by the step
+    # with loops (none here); the plain generated step holds numbers
+    timed = any(callable(value) for value in (inputs or {}).values())
+    looped = bool(loops) or bool(references) or ported or kinematic or timed
     input_signals = {name: as_signal(f"inputs[{name!r}]", value) for name, value in (inputs or {}).items()} \
         if kinematic else {}
     if looped:                  # loops inside the Newton step, the controllers' held outputs added to theirs

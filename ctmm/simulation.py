@@ -164,8 +164,9 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         chains with ``"rk4"``) are sampled in Python between calls into the generated step, which runs each sample
         interval with their held outputs (:func:`ctmm.compiled_cosim.simulate_cosimulated_generated`).  Spatial,
         ``"rk4"``: ``True`` runs the generated RK4 of :func:`ctmm.compiled_spatial.simulate_spatial_generated`
-        (inputs held numbers; the numpy path's result to round-off); with loops
-        :func:`ctmm.compiled_control.simulate_spatial_controlled_generated` (docs/spatial.md §6b).  Planar, a DT-TMM
+        (inputs held numbers; the numpy path's result to round-off); with loops, or inputs that are
+        :mod:`ctmm.signals` functions of time, :func:`ctmm.compiled_control.simulate_spatial_controlled_generated`
+        (docs/spatial.md §6b; the DT-TMM schemes alike).  Planar, a DT-TMM
         scheme: the scheme's step with its Newton iterations in generated C
         (:func:`ctmm.compiled_scene_schemes.simulate_scheme_generated`), co-simulated controllers sampled between
         calls (:func:`ctmm.compiled_scheme_cosim.simulate_cosimulated_scheme_generated`), loops inside its Newton

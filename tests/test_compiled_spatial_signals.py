@@ -299,3 +299,26 @@ def test_a_feedback_loop_on_a_kinematic_loop_model_with_load_signals_equals_the_
         scale = max(1.0, float(np.max(np.abs(python[name]))))
         assert np.max(np.abs(generated[name] - python[name])) <= 1e-12 * scale, name
     assert np.ptp(python["pd.u"]) > 1e-3
+
+
+@pytest.mark.parametrize("method", ["rk4", "newmark"])
+def test_open_loop_signal_inputs_run_generated_without_loops(method) -> None:
+    """A joint torque that is a ctmm.signals function of time and no loop: ``compiled=True`` runs it in generated
+    code (the step with loops, none here, states it on the time symbol; it refused it as "held numbers").  A yaw
+    joint about gravity's axis: ``J theta'' = A sin(w t)``, ``theta = A / (J w^2) (w t - sin(w t))`` with
+    ``J = I_zz + m d^2``; the numpy run to round-off.  A Python callable stays refused by name."""
+    model = sp.SpatialModel("yaw", [
+        sp.SpatialBody("link", 1.0, (0.01, 0.02, 0.02), center_of_mass=(0.3, 0.0, 0.0), points={"tip": (0.6, 0, 0)}),
+        sp.Revolute(name="yaw", parent=None, child="link", axis=(0, 0, 1), actuated=True)], gravity=(0, 0, -9.81))
+    amplitude, omega, dt = 0.5, 3.0, 1e-3
+    inputs = {"yaw.torque": Harmonic(amplitude, omega)}
+    generated = ctmm.simulate(model, t_final=0.5, dt=dt, method=method, inputs=inputs, compiled=True)
+    numpy_run = ctmm.simulate(model, t_final=0.5, dt=dt, method=method, inputs=inputs, compiled=False)
+    t, inertia = generated.time, 0.02 + 1.0 * 0.3 ** 2
+    exact = amplitude / (inertia * omega ** 2) * (omega * t - np.sin(omega * t))
+    # RK4: to round-off of the quadrature of a sine (1e-11); Newmark, second order: (omega dt)^2 of the angle
+    bound = 1e-11 if method == "rk4" else (omega * dt) ** 2
+    assert np.max(np.abs(generated["yaw.angle"] - exact)) <= bound * np.max(exact)
+    assert np.max(np.abs(generated["yaw.angle"] - numpy_run["yaw.angle"])) <= 1e-14
+    with pytest.raises(ModelError, match="Python callable of time"):
+        ctmm.simulate(model, t_final=0.1, dt=dt, method=method, inputs={"yaw.torque": lambda t: t}, compiled=True)

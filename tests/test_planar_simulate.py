@@ -162,7 +162,7 @@ def test_refusals_name_the_option():
         (dict(v0={"r.theta": "fast"}), "v0\\['r.theta'\\]"),
         (dict(outputs=["r.out.z"]), "r.out.z"),
         (dict(t0=1.0), "t0=1.0 applies to 1-D chains only"),
-        (dict(compiled=True, method="houbolt", inputs={"pin.torque": lambda t: t}), "inputs as finite numbers"),
+        (dict(compiled=True, method="houbolt", inputs={"pin.torque": lambda t: t}), "Python callable of time"),
         (dict(compiled=True, method="RK45"), "compiled=True runs the generated RK4"),
         (dict(method="houbolt", inputs={"pin.torque": 1.0}, dt=None), "dt is required with method='houbolt'"),
         (dict(coupling="previous"), "coupling='previous' only applies"),
