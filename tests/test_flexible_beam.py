@@ -9,7 +9,7 @@ import pytest
 
 from ctmm.errors import ModelError, SimulationError
 from ctmm.guard import StabilityLimitWarning
-from ctmm.flexible import ModalBeam, ModeSet, solve_flexible
+from ctmm.flexible import ModalBeam, ModalForce, ModeSet, solve_flexible
 from ctmm.flexible.outputs import tip_deflection
 from ctmm.planar import (DrivenHinge, ElasticHinge, Fixed, FreeBase, Load, Pinned, PlanarModel,
                          RigidBody, SmoothHinge, accelerations, simulate_rk4)
@@ -184,12 +184,27 @@ def test_energy_is_conserved_without_stiffening_and_damping():
                                    lambda xi, d: np.ones_like(xi) * (d == 0),
                                    lambda xi, d: xi ** 3])), "does not match the clamped root"),
     (dict(outboard=2.0), "must lie on the beam"),
+    # one bare object where a sequence is wanted, and a scalar distributed load (were TypeErrors)
+    (dict(loads=Load(point=(0.5, 0.0), force_y=1.0)), r"loads must be a list or tuple of Load .*wrap one"),
+    (dict(modal_forces=ModalForce(force=lambda t: np.zeros(3))), "modal_forces must be a list or tuple of ModalForce"),
+    (dict(distributed_load=1.0), r"distributed_load must be \(q_x, q_y\)"),
 ])
 def test_bad_beam_input_is_rejected(kwargs, match):
     params = dict(length=1.0, bending_stiffness=1.0, mass_per_length=1.0, n_modes=3)
     params.update(kwargs)
     with pytest.raises(ModelError, match=match):
         ModalBeam("b", **params)
+
+
+def test_one_bare_load_or_hook_is_refused_by_name_on_rigid_bodies_and_spatial_beams():
+    """The same refusal for the planar RigidBody's loads and the SpatialBeam's modal_forces (were TypeErrors)."""
+    from ctmm.spatial import SpatialBeam
+    with pytest.raises(ModelError, match="body: loads must be a list or tuple of Load objects"):
+        RigidBody("body", mass=1.0, inertia=1.0, loads=Load(point=(0.0, 0.0), force_y=1.0))
+    with pytest.raises(ModelError, match="beam: modal_forces must be a list or tuple of ModalForce"):
+        SpatialBeam("beam", length=1.0, bending_stiffness_y=1.0, bending_stiffness_z=1.0, mass_per_length=1.0,
+                    modal_forces=ModalForce(force=lambda t: np.zeros(2)))
+    assert RigidBody("body", mass=1.0, inertia=1.0, loads=[Load(point=(0.0, 0.0), force_y=1.0)]).loads[0].point == (0.0, 0.0)
 
 
 def test_piezo_moment_pair_hook_gives_the_exact_static_deflection():
