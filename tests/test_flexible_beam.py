@@ -278,3 +278,19 @@ def test_axial_tip_displacement_of_high_modes_and_its_shape():
         assert isinstance(value, float)
         history = axial_tip_displacement(model, np.vstack([q, 2 * q]), "arm")
         assert history.shape == (2,) and abs(history[0] - value) <= 1e-14 * abs(value)
+
+
+def test_modal_coordinates_are_in_metres():
+    """docs/flexible.md §1.1: the shapes have no unit (|phi_i(L)| = 2), so ``w = phi . q`` makes the modal coordinates
+    metres, as the spatial beam's (SpatialBeam.coordinate_units); the planar ports said '1' and '1/s'.  The tip
+    deflection sensor [m] of a one-mode beam reads -2 q1 ... 2 q1 whatever q1 is."""
+    from ctmm.planar.ports import PlanarPorts, sensor_values
+    beam = ModalBeam("arm", length=1.0, bending_stiffness=2.0, mass_per_length=0.5, n_modes=1, n_axial_modes=1,
+                     axial_stiffness=1e3, stations={"tip": 1.0})
+    model = PlanarModel.chain("hub_beam", [Pinned("p"), RigidBody("hub", mass=1.0, inertia=0.1, outboard=(0.1, 0.0)),
+                                           FixedMounting("m"), beam], gravity=(0.0, 0.0))
+    ports = PlanarPorts(model)
+    q = np.array([0.3, 0.02, 0.001])
+    assert abs(abs(sensor_values(model, ["arm.tip.w"], q, np.zeros(3))[0]) - 2 * 0.02) < 1e-12
+    assert [ports.sensor_unit(n) for n in ("arm.tip.w", "arm.q1", "arm.u1", "arm.q1_dot", "arm.u1_dot", "hub.theta")] \
+        == ["m", "m", "m", "m/s", "m/s", "rad"]

@@ -152,7 +152,10 @@ def _coordinate_entries(model: PlanarModel, k: int, sensors: dict) -> None:
     coordinate = model.coordinates[k]
     unit = "m" if coordinate.rsplit(".", 1)[-1] in ("x", "y", "dx", "dy") else (
         "rad" if coordinate.endswith(".theta") else "1")
-    rate_unit = {"m": "m/s", "rad": "rad/s", "1": "1/s"}[unit]
+    for j, body in model.beams.items():         # internal coordinates: the body's own units (modal amplitudes in m)
+        if k in model.modal_index[j]:
+            unit = body.coordinate_units[int(np.flatnonzero(model.modal_index[j] == k)[0])]
+    rate_unit = f"{unit}/s"
     sensors.setdefault(coordinate, _Sensor(coordinate, "coordinate", k, "", unit=unit))
     sensors[f"{coordinate}_dot"] = _Sensor(f"{coordinate}_dot", "coordinate", k, "dot", unit=rate_unit)
 
