@@ -81,6 +81,24 @@ def _solve_small(G: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return np.linalg.solve(G, rhs)
 
 
+def _solve_boundary(H: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``_solve_small(H, rhs)`` for the end equations, NaN in the batch entries where ``H`` is singular
+    (numpy raises ``LinAlgError`` for an exactly singular matrix; the callers name those entries)."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        try:
+            return _solve_small(H, rhs)
+        except np.linalg.LinAlgError:
+            batch = np.broadcast_shapes(H.shape[:-2], rhs.shape[:-1])
+            H, rhs = np.broadcast_to(H, batch + H.shape[-2:]), np.broadcast_to(rhs, batch + rhs.shape[-1:])
+            e = np.full(rhs.shape, np.nan, dtype=np.result_type(H, rhs))
+            for k in np.ndindex(*batch):
+                try:
+                    e[k] = _solve_small(H[k], rhs[k])
+                except np.linalg.LinAlgError:
+                    pass
+            return e
+
+
 def _logdet(G: np.ndarray) -> np.ndarray:
     if G.shape[-1] == 1:
         return np.log(G[..., 0, 0].astype(complex))
@@ -155,9 +173,7 @@ def riccati_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: Bou
     if homogeneous:
         e = np.conj(np.linalg.svd(H)[2][..., -1, :])
     else:
-        rhs = end.b - np.einsum("...ij,...j->...i", Bf, P)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            e = _solve_small(H, rhs)
+        e = _solve_boundary(H, end.b - np.einsum("...ij,...j->...i", Bf, P))
     if not np.all(np.isfinite(e)):
         bad = np.flatnonzero(~np.all(np.isfinite(e), axis=-1))
         raise SingularSystemError(
@@ -354,8 +370,7 @@ def plain_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: Bound
         p = np.einsum("...ij,...j->...i", U, p) + u
     H = end.Bm @ Z
     rhs = end.b - np.einsum("...ij,...j->...i", end.Bm, p)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        e = _solve_small(H, rhs)
+    e = _solve_boundary(H, rhs)
     if not np.all(np.isfinite(e)):
         raise SingularSystemError("the boundary equations are singular (plain transfer)")
     states = np.empty((len(Us) + 1, B, n), dtype=np.result_type(Z, e))

@@ -51,6 +51,7 @@ from .errors import ModelError
 from .saturation import refuse_saturation
 from .loop_phasors import close_loops, loop_signal
 from .results import FrequencyResponse
+from .signal_units import loop_units
 
 __all__ = ["ExactForm", "exact_form", "form_response", "frequency_response", "ExactResponse",
            "natural_frequencies"]
@@ -408,6 +409,7 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     sensors, actuators = set(ports.sensor_names(model)), set(ports.actuator_names(model))
     units = {name: ports.actuator_unit(model, name) for name in inputs if name in actuators}
     units.update({name: ports.sensor_unit(model, name) for name in outputs if name in sensors})
+    units.update(loop_units(ports.PlanarPorts(model), responder.loops, inputs + outputs))
     info = {"method": "exact fields (bending chain of BeamField pieces, ctmm.exact_fields), delays exact",
             "wall_time_s": time.perf_counter() - started, "n_frequencies": int(omega.size),
             "chain_elements": len(form.chain.elements)}

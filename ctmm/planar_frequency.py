@@ -34,6 +34,7 @@ from .controlled_linearization import delayed_loop_response_function
 from .planar_linearization import linearize_planar, tangent
 from .planar_linearization import operating_point as planar_operating_point
 from .results import FrequencyResponse, ModalResult
+from .signal_units import loop_units
 
 __all__ = ["is_planar_system", "frequency_response", "PlanarResponse", "acceleration_twin", "natural_frequencies", "mode_shapes", "eigenvalue_count",
            "ZERO_MODE_FACTOR", "RESOLUTION"]
@@ -125,14 +126,7 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     units.update({name: named.sensor_unit(name) for name in outputs if name in named.sensors})
     units.update({name: f"{named.sensor_unit(twin)}/s^2" for name, twin in zip(outputs, responder.outputs)
                   if twin != name})
-    for loop in loops:              # loop signals carry a unit when their weights are plain (one term, weight 1)
-        plain_sensor = [w for _, w in loop.terms] == [1.0]
-        plain_actuator = [w for _, w in loop.actuator_terms] == [1.0]
-        sensed = named.sensor_unit(loop.terms[0][0]) if plain_sensor else ""
-        force = named.actuator_unit(loop.actuator_terms[0][0]) if plain_actuator else ""
-        for name, unit in ((f"{loop.name}.y", sensed), (f"{loop.name}.reference", sensed), (f"{loop.name}.u", force)):
-            if name in inputs or name in outputs:
-                units[name] = unit
+    units.update(loop_units(named, loops, inputs + outputs))
     point = responder.point
     info = {"method": responder.method, "wall_time_s": time.perf_counter() - started, "n_frequencies": int(s.size),
             "n_dense_frequencies": responder.dense_count, "operating_point_q": point.q.tolist(),

@@ -291,9 +291,9 @@ class SimulationResult:
         """Unit of a signal (``"m"`` for ``"m6.x"``, ``"N"`` for ``"loop.u"``; ``""`` if unknown)."""
         return signal_unit(name, self.system)
 
-    def units(self, names: Sequence[str] | None = None) -> dict[str, str]:
-        """Units of the named signals (default: all time-grid signals), ``{name: unit}``."""
-        return {n: self.unit(n) for n in (self.time_signals() if names is None else names)}
+    def units(self, names: str | Sequence[str] | None = None) -> dict[str, str]:
+        """Units of the named signals (a name or names; default: all time-grid signals), ``{name: unit}``."""
+        return {n: self.unit(n) for n in (self.time_signals() if names is None else validation.names("names", names))}
 
     def time_signals(self) -> list[str]:
         """Signals sampled on :attr:`time` (one value per time row); the default of exports.

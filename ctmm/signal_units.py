@@ -85,7 +85,9 @@ def loop_unit(ports: Any, loop: Any, quantity: str) -> str:
     Returns
     -------
     str
-        The terms' common unit; :data:`UNKNOWN` when they mix units or for another quantity.
+        The terms' common unit when every weight is ``+1`` or ``-1``; :data:`UNKNOWN` when they mix units,
+        for another quantity, or when a weight is another number (its unit is not known: e.g. a PZT loop's
+        slope-rate gains [V s/rad] and moments per volt [N m/V] make its ``y`` and ``u`` volts).
     """
     if quantity == "L":
         return "1"
@@ -95,8 +97,18 @@ def loop_unit(ports: Any, loop: Any, quantity: str) -> str:
         names, unit = getattr(loop, "actuator_terms", ()), ports.actuator_unit
     else:
         return UNKNOWN
+    if any(abs(weight) != 1.0 for _, weight in names):
+        return UNKNOWN
     units = {unit(name) for name, _ in names}
     return units.pop() if len(units) == 1 else UNKNOWN
+
+
+def loop_units(ports: Any, loops: Any, names: Any) -> dict[str, str]:
+    """``{"<loop>.y" / ".reference" / ".u": unit}`` by :func:`loop_unit` for those of ``names`` that are loop signals
+    of ``loops`` (the units of a frequency response's loop inputs and outputs)."""
+    wanted = set(names)
+    return {f"{loop.name}.{quantity}": loop_unit(ports, loop, quantity) for loop in loops
+            for quantity in ("y", "reference", "u") if f"{loop.name}.{quantity}" in wanted}
 
 
 class _ChainUnits:

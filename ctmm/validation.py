@@ -204,6 +204,17 @@ def names(name: str, value: Any, *, allow_empty: bool = False) -> tuple[str, ...
     raise ModelError(f"{name} must be a name (str) or a list/tuple of names, got {_shown(value)}")
 
 
+def instances(name: str, value: Any, kind: type) -> tuple:
+    """A list or tuple of ``kind`` objects as a tuple (one bare object is refused, naming the wrapping)."""
+    if not isinstance(value, (list, tuple)):
+        hint = f"; wrap one in a tuple: ({kind.__name__}(...),)" if isinstance(value, kind) else ""
+        raise ModelError(f"{name} must be a list or tuple of {kind.__name__} objects, got {_shown(value)}{hint}")
+    for item in value:
+        if not isinstance(item, kind):
+            raise ModelError(f"{name} must be {kind.__name__} objects, got {_shown(item)}")
+    return tuple(value)
+
+
 def number_mapping(name: str, value: Any) -> dict[str, float]:
     """A mapping ``{name: finite number}`` (``None`` means empty) or raise."""
     if value is None:

@@ -84,6 +84,28 @@ def test_a_crank_driving_modal_beams_generated_equals_numpy_rk4():
         assert_round_off(generated[name], python[name], name)
 
 
+def test_a_welded_cantilever_and_a_beam_at_a_constant_drive_angle_generated_equal_numpy_rk4():
+    """A beam whose angle is a number (Fixed + ModalBeam, the plain cantilever; a DrivenHinge with a constant
+    angle) failed to compile with numpy's TypeError 'float ... has no callable cos method'."""
+    from ctmm.flexible import ModalBeam
+    from ctmm.planar.elements import FixedMounting
+
+    def beam(name):
+        return ModalBeam(name, length=0.8, bending_stiffness=4.0, mass_per_length=0.6, n_modes=2, stations={"tip": 0.8})
+
+    cantilever = PlanarModel.chain("cantilever", [planar_elements.Fixed("g"), beam("b")], gravity=(0.0, -G))
+    held = PlanarModel.chain("held", [planar_elements.Fixed("g"), DrivenHinge("motor", angle=0.3),
+                                      RigidBody("hub", mass=1.0, inertia=0.05, center_of_mass=(0.05, 0.0),
+                                                outboard=(0.1, 0.0)), FixedMounting("m"), beam("b")], gravity=(0.0, -G))
+    for model in (cantilever, held):
+        options = dict(method="rk4", x0={"b.q1": 0.01}, inputs={"b.tip.force": 0.2})
+        generated = ctmm.simulate(model, 0.2, 1e-3, compiled=True, **options)
+        python = ctmm.simulate(model, 0.2, 1e-3, compiled=False, **options)
+        assert generated.info["method"] == "rk4-generated" and np.ptp(python["b.q1"]) > 1e-3
+        for name in model.coordinates:
+            assert_round_off(generated[name], python[name], name)
+
+
 def test_the_drive_numbers_are_inputs_of_one_library():
     """Two drives of one class with other numbers run on one compiled scene (their numbers are entries of ``p``),
     each equal to its own numpy run; a drive of another signal class is another structure."""

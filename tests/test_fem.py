@@ -159,3 +159,16 @@ def test_a_large_deformation_is_reported():
     model = PlanarModel.chain("floppy", [Pinned("base"), fe.subsystem("soft", ("n0", "n2"))])
     with pytest.warns(SmallDeformationWarning, match="soft"):
         ctmm.simulate(model, 0.15, 1e-3, method="newmark")
+
+
+def test_nodal_coordinates_have_the_units_of_displacements_and_rotations():
+    """The planar ports named every internal coordinate of a subsystem dimensionless ('1', rates '1/s'); nodal
+    displacements are m and rotations rad (as the spatial subsystem's coordinate_units)."""
+    from ctmm.planar.ports import PlanarPorts
+    fe = FiniteElementModel("soft", {"n0": (0.0, 0.0), "n1": (0.5, 0.0), "n2": (1.0, 0.0)},
+                            [BeamElement(f"e{k}", f"n{k}", f"n{k + 1}", 0.5, 1e3, 1.0) for k in (0, 1)])
+    model = PlanarModel.chain("floppy", [Pinned("base"), fe.subsystem("soft", ("n0", "n2"))])
+    ports = PlanarPorts(model)
+    units = {name: ports.sensor_unit(name) for name in model.coordinates}
+    assert units == {name: "rad" if name.endswith(("_rz", ".theta")) else "m" for name in model.coordinates}
+    assert {ports.sensor_unit(f"{name}_dot") for name in model.coordinates if name.endswith("_ux")} == {"m/s"}

@@ -191,6 +191,31 @@ def test_static_free_free_is_singular():
         ctmm.frequency_response(chain, [0.0], input="m1.force", output="m2.x")
 
 
+def test_static_free_free_beam_is_singular():
+    """The same for vector states (beam fields: the Riccati and plain end solves) and for a planar hub + beam
+    with exact fields at omega = 0 (free rotation): numpy's LinAlgError of the exactly singular end equations
+    used to escape; it is the documented SingularSystemError naming the batch entry."""
+    from ctmm.elements import BeamClamped, BeamField, BeamFree, BeamPointLoad
+    from ctmm.flexible import ModalBeam
+    from ctmm.planar import ActuatedHinge, Fixed as PlanarFixed, PlanarModel, RigidBody
+    from ctmm.planar.elements import FixedMounting
+    field = dict(length=1.0, bending_stiffness=2.0, mass_per_length=0.5)
+    for solver in ("riccati", "plain"):
+        chain = ctmm.Chain("ff", [BeamFree("a"), BeamField("f", **field), BeamPointLoad("p"), BeamField("g", **field),
+                                  BeamFree("b")])
+        with pytest.raises(ctmm.SingularSystemError, match="singular"):
+            ctmm.frequency_response(chain, [0.0, 1.0], input="p.force", output="p.w", solver=solver)
+        clamped = ctmm.Chain("cf", [BeamClamped("a"), BeamField("f", **field), BeamPointLoad("p"), BeamFree("b")])
+        response = ctmm.frequency_response(clamped, [0.0], input="p.force", output="p.w", solver=solver)
+        assert abs(response("p.w", "p.force")[0] - 1.0 / (3 * 2.0)) < 1e-12      # L^3 / (3 EI)
+    hub_beam = PlanarModel.chain("hub_beam", [
+        PlanarFixed("ground"), ActuatedHinge("motor"),
+        RigidBody("hub", mass=1.0, inertia=0.05, center_of_mass=(0.0, 0.0), outboard=(0.1, 0.0)), FixedMounting("m"),
+        ModalBeam("arm", n_modes=3, stations={"tip": 1.0}, **field)], gravity=(0.0, 0.0))
+    with pytest.raises(ctmm.SingularSystemError, match=r"batch entries \[0\]"):
+        ctmm.frequency_response(hub_beam, [0.0, 1.0], input="motor.torque", output="arm.tip.w", fields="exact")
+
+
 @pytest.mark.parametrize("seed, n", [(0, 5), (3, 12), (11, 40)])
 def test_free_free_rigid_mode_is_exactly_zero(seed, n):
     """A free-free chain's rigid-body mode is returned as 0 (the count at a tiny frequency must not

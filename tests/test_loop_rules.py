@@ -36,6 +36,26 @@ def test_loop_unit_is_the_common_unit_of_the_terms_and_unknown_when_they_mix():
     assert loop_unit(ports, mixed, "u") == UNKNOWN
 
 
+def test_a_weight_other_than_plus_or_minus_one_makes_the_unit_unknown_on_every_path():
+    """A weight's unit is not known (the manipulator's PZT loop: slope rates [rad/s] times gains [V s/rad], moment
+    pair [N m] per volt: its ``y`` and ``u`` are volts, docs/manipulator.md §6).  The time paths named them by the
+    terms' unit ('rad/s', 'N m') while the frequency response left them unknown; now one rule everywhere."""
+    import ctmm
+    from ctmm.manipulator import HubPD, PZTFeedback, SEED_MOVE, manipulator_scene, scene_references, seed_manipulator
+    ports = _StatedPorts()
+    weighted = Feedback("w", [("a.x", 2.0), ("b.x", -2.0)], [("m.torque_rad", -1e-3), ("n.torque_rad", 1e-3)], gain=1.0)
+    assert [loop_unit(ports, weighted, q) for q in ("y", "reference", "u", "L")] == [UNKNOWN, UNKNOWN, UNKNOWN, "1"]
+    pd = HubPD(200.0, 30.0)
+    scene = manipulator_scene(seed_manipulator(), pd=pd, pzt=PZTFeedback.per_patch([1000.0] * 3))
+    names = ["pzt1.u", "pzt1.y", "hub_pd.u", "hub_pd.y"]
+    expected = {"pzt1.u": UNKNOWN, "pzt1.y": UNKNOWN, "hub_pd.u": "N m", "hub_pd.y": UNKNOWN}
+    run = ctmm.simulate(scene, 0.01, 0.002, method="rk4", references=scene_references(pd, SEED_MOVE))
+    assert run.units(names) == expected
+    for fields in ("modal", "exact"):
+        response = ctmm.frequency_response(scene, [5.0], input="hub_pd.reference", output=names, fields=fields)
+        assert {name: response.units[name] for name in names} == expected, fields
+
+
 def test_a_controlled_chain_names_its_loop_units_by_the_same_rule():
     plant = Chain("one", [Fixed("wall"), SpringDamper("k0", 100.0, 0.5), Mass("m0", 1.0), Free("end")])
     system = ControlledChain(plant, [Feedback("pos", "m0.x", "m0", gain=3.0),

@@ -51,6 +51,13 @@ def test_units_with_the_system(result):
     assert set(QUANTITY_UNITS) >= {"x", "v", "a", "f"}
 
 
+def test_units_of_one_name(result):
+    """``result.units("m2.x")`` read the string as the names "m", "2", ".", "x" (a dict of four empty units)."""
+    assert result.units("m2.x") == {"m2.x": "m"} and result.units(["m2.x", "pd.u"]) == {"m2.x": "m", "pd.u": "N"}
+    with pytest.raises(ModelError, match="names must be a name"):
+        result.units(3)
+
+
 # ---------------------------------------------------------------------------------- data frame
 def test_dataframe_equals_the_arrays(result):
     pd = pytest.importorskip("pandas")

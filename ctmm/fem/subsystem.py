@@ -266,6 +266,11 @@ class GlobalSubsystem(DeformableBody):
         return self.data.suffixes
 
     @property
+    def coordinate_units(self) -> tuple[str, ...]:
+        """``"m"`` for the nodal displacements ``_ux``, ``_uy``, ``"rad"`` for the rotations ``_rz``."""
+        return tuple("rad" if suffix.endswith("_rz") else "m" for suffix in self.coordinate_suffixes)
+
+    @property
     def n_eta(self) -> int:
         return self.data.n
 

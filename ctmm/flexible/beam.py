@@ -224,26 +224,22 @@ class ModalBeam(DeformableBody):
             checked = {"out": station_abscissa(n, "outboard", ends, self.length)}
         object.__setattr__(self, "outboard", checked)
         object.__setattr__(self, "stations", check_stations(self, self.stations))
-        loads = tuple(self.loads)
+        loads = validation.instances(f"{n}: loads", self.loads, Load)
         for load in loads:
-            if not isinstance(load, Load):
-                raise ModelError(f"{n}: loads must be Load objects, got {load!r}")
             if abs(load.point[1]) > 0.0:
                 raise ModelError(f"{n}: a beam load acts on the axis; Load.point must be (x, 0), "
                                  f"got {load.point}")
             station_abscissa(n, "load station", load.point[0], self.length)
         object.__setattr__(self, "loads", loads)
-        if len(self.distributed_load) != 2:
+        if not isinstance(self.distributed_load, (list, tuple)) or len(self.distributed_load) != 2:
             raise ModelError(f"{n}: distributed_load must be (q_x, q_y) [N/m], "
                              f"got {self.distributed_load!r}")
         object.__setattr__(self, "distributed_load",
                            tuple(as_signal(f"{n}: distributed_load", v)
                                  for v in self.distributed_load))
-        forces = tuple(self.modal_forces)
+        forces = validation.instances(f"{n}: modal_forces", self.modal_forces, ModalForce)
         n_eta = self.n_modes + self.n_axial_modes
         for hook in forces:
-            if not isinstance(hook, ModalForce):
-                raise ModelError(f"{n}: modal_forces must be ModalForce objects, got {hook!r}")
             for attribute in ("stiffness", "damping"):
                 value = getattr(hook, attribute)
                 if value is not None and value.shape != (n_eta, n_eta):

@@ -43,20 +43,22 @@ def tip_deflection(model, q, beam: str) -> np.ndarray:
 
 def axial_tip_displacement(model, q, beam: str) -> np.ndarray:
     """Axial tip displacement ``psi(L) . p - 1/2 int_0^L (phi' . q)^2 dx`` [m]: elastic stretch
-    plus the second-order foreshortening of the bent axis (post-processed, not in the state)."""
+    plus the second-order foreshortening of the bent axis (post-processed, not in the state); a float
+    for one state ``q``, an array ``(n_times,)`` for a history, as :func:`tip_deflection`."""
     j = _modal_beam_index(model, beam)
     b = model.beams[j]
     d = b.data
-    q = np.atleast_2d(_coordinates(model, q))
+    q = _coordinates(model, q)
+    single, q = q.ndim == 1, np.atleast_2d(q)
     idx = model.modal_index[j]
     from .modes import gauss_points
-    x, w = gauss_points(64, b.length)
+    x, w = gauss_points(b.quadrature, b.length)     # the beam's own rule, checked for its n_modes
     dphi = b.shapes(x, 1)
     slope = q[:, idx[:d.nq]] @ dphi
     shortening = -0.5 * (slope ** 2) @ w
     stretch = q[:, idx[d.nq:]] @ d.tip_psi if d.np_ else 0.0
     out = stretch + shortening
-    return out if np.ndim(out) else float(out)
+    return float(out[0]) if single else out
 
 
 def highest_frequency(model) -> tuple[float, str]:

@@ -39,7 +39,7 @@ def symbolic_beam_terms(ops: Ops, data: Any, points: Sequence[str], theta: Any, 
     (``B = 1``), its results assembled into ops matrices.  ``eta, eta_dot``: object arrays ``(1, n)``."""
     def scalars(x: Any) -> np.ndarray:
         out = np.empty(1, dtype=object)
-        out[0] = x
+        out[0] = ops.block([[x]]) if isinstance(x, (int, float)) else x   # a welded/driven angle: a number (no .cos)
         return out
 
     def matrix(a: np.ndarray) -> Any:

@@ -69,3 +69,9 @@ class DeformableBody:
     """Base class of planar bodies with internal coordinates; ``family`` provides their kernels."""
 
     family: ClassVar[DeformableFamily]
+
+    @property
+    def coordinate_units(self) -> tuple[str, ...]:
+        """Unit of each internal coordinate (order of ``coordinate_suffixes``): ``"m"``, the amplitudes of shapes
+        without a unit (``ModalBeam``: ``w = phi . q``, ``u = psi . p``); a family with rotations overrides it."""
+        return ("m",) * len(self.coordinate_suffixes)

@@ -148,11 +148,7 @@ class RigidBody:
         else:
             checked = {"out": _point(f"{self.name}: outboard", ends)}
         object.__setattr__(self, "outboard", dict(checked))
-        loads = tuple(self.loads)
-        for load in loads:
-            if not isinstance(load, Load):
-                raise ModelError(f"{self.name}: loads must be Load objects, got {load!r}")
-        object.__setattr__(self, "loads", loads)
+        object.__setattr__(self, "loads", validation.instances(f"{self.name}: loads", self.loads, Load))
 
     @property
     def ends(self) -> tuple[str, ...]:

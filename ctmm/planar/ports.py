@@ -152,7 +152,11 @@ def _coordinate_entries(model: PlanarModel, k: int, sensors: dict) -> None:
     coordinate = model.coordinates[k]
     unit = "m" if coordinate.rsplit(".", 1)[-1] in ("x", "y", "dx", "dy") else (
         "rad" if coordinate.endswith(".theta") else "1")
-    rate_unit = {"m": "m/s", "rad": "rad/s", "1": "1/s"}[unit]
+    owner, _, suffix = coordinate.rpartition(".")
+    body = model.beams.get(model.body_index(owner))     # internal coordinates: the body's own units (modal: m)
+    if body is not None and suffix in body.coordinate_suffixes:
+        unit = body.coordinate_units[body.coordinate_suffixes.index(suffix)]
+    rate_unit = f"{unit}/s"
     sensors.setdefault(coordinate, _Sensor(coordinate, "coordinate", k, "", unit=unit))
     sensors[f"{coordinate}_dot"] = _Sensor(f"{coordinate}_dot", "coordinate", k, "dot", unit=rate_unit)
 

@@ -208,10 +208,8 @@ class SpatialBeam:
                              f"{self.distributed_load!r}")
         object.__setattr__(self, "distributed_load",
                            tuple(as_signal(f"{n}: distributed_load[{i}]", v) for i, v in enumerate(load)))
-        hooks = tuple(self.modal_forces)
+        hooks = validation.instances(f"{n}: modal_forces", self.modal_forces, ModalForce)
         for hook in hooks:
-            if not isinstance(hook, ModalForce):
-                raise ModelError(f"{n}: modal_forces must be ModalForce objects, got {hook!r}")
             if hook.law is not None:
                 raise ModelError(f"{n}: {hook.label}: a spatial beam takes ModalForce force, stiffness and damping; "
                                  "law is not supported (use a linear hook or the control ports)")
