@@ -53,9 +53,11 @@ def simulate_spatial_system(parts: tuple[SpatialModel, tuple], t_final: float, d
                 if name not in model.inputs and name not in known:
                     raise unknown_name("spatial input", name, list(model.inputs) + list(known))
         cosimulated = bool(controllers)         # between calls into the generated scheme, ctmm.compiled_scheme_cosim
-        # inputs that are functions of time (ctmm.signals with a symbolic form) are stated on the time symbol of the
-        # step with loops (none here); the plain generated step holds numbers
-        controlled = controlled or any(callable(value) for value in (inputs or {}).values())
+        # inputs that are functions of time (ctmm.signals with a symbolic form) on port actuators are stated on the
+        # time symbol of the step with loops (none here); the plain generated step holds numbers (and refuses a
+        # function of time on a joint's vector input by name)
+        timed = [name for name, value in (inputs or {}).items() if callable(value)]
+        controlled = controlled or bool(timed) and all(name in SpatialPorts(model).actuators for name in timed)
         if (isinstance(method, Scheme) or method in SCHEMES) and controlled and not controllers:
             from .compiled_spatial_scheme_loops import simulate_spatial_scheme_loops_generated  # loops in Newton
             from .control.controlled_model import ControlledModel
