@@ -282,7 +282,7 @@ CASES: list[tuple[Case, list]] = [
      [0, 1.5, True, 77, 10 ** 6]),
     (Case("ctmm.flexible.ModalBeam", "quadrature", "integer vs modes",
           lambda v: ModalBeam("a", length=1.0, bending_stiffness=1.0, mass_per_length=1.0, n_modes=10,
-                              quadrature=v)), [8, 27, 0, 2.5]),
+                              quadrature=v)), [8, 27, 0, 2.5, 10 ** 6]),
     # fixed in ctmm/simulation.py after the fuzz found them (were strict xfails)
     (Case("ctmm.simulate", "outputs", "not a list of names", lambda v: ctmm.simulate(arm(), 0.05, 0.01, outputs=v)),
      [3, None, {"link.theta": 1}]),

@@ -206,18 +206,27 @@ def gauss_points(count: int, length: float) -> tuple[np.ndarray, np.ndarray]:
     return (x + 1.0) * 0.5 * length, w * 0.5 * length
 
 
+MAXIMUM_QUADRATURE = 4000
+"""Most Gauss-Legendre points of a beam's modal integrals (:func:`check_quadrature`): 1996 modes."""
+
+
 def check_quadrature(owner: str, n_modes: int, n_axial_modes: int, quadrature: int) -> None:
-    """Raise :class:`ModelError` unless ``quadrature >= 2 max(n_modes, n_axial_modes) + 8`` Gauss points.
+    """Raise :class:`ModelError` unless ``2 max(n_modes, n_axial_modes) + 8 <= quadrature <=`` :data:`MAXIMUM_QUADRATURE`
+    Gauss points.
 
     The k-th shape has about k half-waves: with fewer points the modal integrals are wrong without
     any error (100 clamped-free modes on 160 points give a modal mass matrix 4 % off the identity).
     """
     needed = 2 * max(n_modes, n_axial_modes) + 8
+    if quadrature > MAXIMUM_QUADRATURE:
+        raise ModelError(f"{owner}: quadrature={quadrature} Gauss points; at most {MAXIMUM_QUADRATURE} are taken "
+                         f"(numpy's Gauss-Legendre rule is an eigenproblem of that size: a million points would not fit "
+                         f"in memory), enough for {(MAXIMUM_QUADRATURE - 8) // 2} modes")
     if quadrature < needed:
         raise ModelError(f"{owner}: quadrature={quadrature} Gauss points cannot integrate n_modes={n_modes} "
                          f"(n_axial_modes={n_axial_modes}) accurately; use quadrature >= {needed} (2 points per "
                          "mode + 8) or fewer modes")
 
 
-__all__ = ["ModeSet", "clamped_free_betas", "check_root_clamped", "check_quadrature", "gauss_points",
+__all__ = ["MAXIMUM_QUADRATURE", "ModeSet", "clamped_free_betas", "check_root_clamped", "check_quadrature", "gauss_points",
            "SUPPORTED_BOUNDARY"]
