@@ -220,8 +220,8 @@ def check_quadrature(owner: str, n_modes: int, n_axial_modes: int, quadrature: i
     needed = 2 * max(n_modes, n_axial_modes) + 8
     if quadrature > MAXIMUM_QUADRATURE:
         raise ModelError(f"{owner}: quadrature={quadrature} Gauss points; at most {MAXIMUM_QUADRATURE} are taken "
-                         f"(numpy's Gauss-Legendre rule is an eigenproblem of that size: a million points would not fit "
-                         f"in memory), enough for {(MAXIMUM_QUADRATURE - 8) // 2} modes")
+                         f"(numpy's Gauss-Legendre rule is an eigenproblem of that size: its memory grows with the square), "
+                         f"enough for {(MAXIMUM_QUADRATURE - 8) // 2} modes")
     if quadrature < needed:
         raise ModelError(f"{owner}: quadrature={quadrature} Gauss points cannot integrate n_modes={n_modes} "
                          f"(n_axial_modes={n_axial_modes}) accurately; use quadrature >= {needed} (2 points per "
