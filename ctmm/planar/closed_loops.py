@@ -490,7 +490,7 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
         Initial tree coordinates and rates (checked against the constraints: ``|Phi|``, ``|Phi'| <= 1e-8``,
         :func:`ctmm.loop_integration.check_consistent`).
     t_final : float
-        End time [s].
+        End time [s] (RK4: a whole multiple of ``dt``, as every fixed-step method).
     dt : float, optional
         Fixed step [s] (required for ``"rk4"``).
     method : str
