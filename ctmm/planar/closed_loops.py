@@ -129,6 +129,11 @@ class KinematicLoopModel:
         cuts = tuple(cuts)
         if not cuts or not all(isinstance(c, CutJoint) for c in cuts):
             raise ModelError(f"KinematicLoopModel: cuts must be a non-empty sequence of CutJoint, got {cuts!r}")
+        taken = {element.name for element in tree.elements}
+        for k, cut in enumerate(cuts):      # the ports and results are keyed by the cut's name
+            if cut.name in taken or cut.name in {c.name for c in cuts[:k]}:
+                raise ModelError(f"KinematicLoopModel: duplicate name {cut.name!r} (cut joint names must differ from "
+                                 "each other and from the tree's elements)")
         self.tree, self.cuts = tree, cuts
         self.baumgarte = validation.nonnegative("baumgarte", baumgarte)
         self.foreshortening = validation.flag("foreshortening", foreshortening)
