@@ -242,3 +242,13 @@ def test_one_evaluation_of_the_terms_for_several_inputs_equals_separate_sweeps(f
         assert all(np.array_equal(one.modal_acceleration[k], alone.modal_acceleration[k])
                    for k in one.modal_acceleration)
     assert not np.array_equal(together[0].qddot, together[1].qddot)     # the inputs act
+
+
+def test_consistent_state_holds_one_coordinate_given_by_name_as_the_spatial_model():
+    """``keep="crank.theta"`` was read character by character ("unknown coordinate 'c'") where the spatial model
+    takes one name; now the crank is held: its angle and rate as given, the cut joints closed."""
+    loop = four_bar()
+    q, v = loop.consistent_state([1.4, 0.5, 1.8], [2.0, 0.0, 0.0], keep="crank.theta")
+    assert (q[0], v[0]) == (1.4, 2.0)
+    phi, rate = loop.constraints(q, v)
+    assert np.max(np.abs(phi)) < 1e-12 and np.max(np.abs(rate)) < 1e-12

@@ -351,10 +351,11 @@ class KinematicLoopModel:
     def consistent_state(self, q, qdot, *, keep: Sequence[str] = (), tolerance: float = 1e-12
                          ) -> tuple[np.ndarray, np.ndarray]:
         """A state on the constraints near ``(q, qdot)`` with the coordinates ``keep`` held (e.g. the crank
-        angle and rate of a four-bar): Gauss-Newton on ``Phi = 0`` and a least-squares ``J qdot = 0``."""
+        angle and rate of a four-bar; one name or a sequence): Gauss-Newton on ``Phi = 0`` and a least-squares
+        ``J qdot = 0``."""
         q, qdot = self.tree.state(q, qdot)
         q, qdot = q.astype(float).copy(), qdot.astype(float).copy()
-        held = [self.tree.coordinate_index(name) for name in keep]
+        held = [self.tree.coordinate_index(name) for name in ([keep] if isinstance(keep, str) else keep)]
         free = [k for k in range(len(q)) if k not in held]
         for _ in range(50):
             phi, _ = self.constraints(q, qdot)
