@@ -460,9 +460,9 @@ class KinematicLoopModel:
     def natural_frequencies(self, q0, t: float = 0.0) -> np.ndarray:
         """Undamped natural frequencies [rad/s] about the resting state ``q0`` (an equilibrium: refused
         otherwise), ascending, from :meth:`resting_tangent` (:func:`ctmm.loop_manifold.undamped_frequencies`)."""
-        A, basis, q0, _ = self.resting_tangent(q0, t)
+        A, basis, q0, error = self.resting_tangent(q0, t)
         loop_manifold.require_equilibrium(self, A, basis, q0, t, "KinematicLoopModel.equilibrium")
-        return loop_manifold.undamped_frequencies(self, A)
+        return loop_manifold.undamped_frequencies(self, A, error)
 
     def equilibrium(self, q_guess, t: float = 0.0, *, tolerance: float = 1e-10, largest_step: float = 0.2
                     ) -> np.ndarray:
