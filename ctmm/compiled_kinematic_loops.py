@@ -425,7 +425,7 @@ def generated_run(kind: type, model: Any, q: np.ndarray, v: np.ndarray, t_final:
                   compiled: Any, cache_dir: str | os.PathLike | None) -> tuple[Any, np.ndarray, np.ndarray, float, int]:
     """The generated run of the simulate functions: ``compiled`` checked (an instance of ``kind``, a
     :class:`CompiledKinematicLoops` class, of ``model`` with ``store_every``) or built, the start checked
-    (:func:`ctmm.loop_integration.check_consistent`), ``round(t_final / dt)`` steps of ``dt`` [s]; ``(compiled, t,
+    (:func:`ctmm.loop_integration.check_consistent`), ``t_final / dt`` steps of ``dt`` [s] (a whole number); ``(compiled, t,
     states, wall time [s], steps)``."""
     if compiled is None:
         compiled = kind(model, store_every=store_every, cache_dir=cache_dir)
@@ -434,7 +434,7 @@ def generated_run(kind: type, model: Any, q: np.ndarray, v: np.ndarray, t_final:
                          f"{compiled!r:.80}")
     t_final, h = validation.positive("t_final", t_final), validation.positive("dt", dt)
     check_consistent(model, q, v)
-    n_steps = max(1, int(round(t_final / h)))
+    n_steps = validation.whole_step_count(t_final, h)
     started = _time.perf_counter()
     t, states = compiled.run(np.asarray(q, float), np.asarray(v, float), h, n_steps)
     return compiled, t, states, _time.perf_counter() - started, n_steps
@@ -530,8 +530,8 @@ def simulate_kinematic_loops_generated(model: KinematicLoopModel, q0: Any, qdot0
                                        cache_dir: str | os.PathLike | None = None) -> KinematicLoopSimulation:
     """RK4 with projection of a planar kinematic loop model, the time loop in generated C (module docstring).
 
-    The same steps as :func:`ctmm.planar.closed_loops.simulate_kinematic_loops` with ``method="rk4"`` (``steps =
-    round(t_final / dt)`` steps of ``dt``, stored every ``store_every`` and at the last), method label
+    The same steps as :func:`ctmm.planar.closed_loops.simulate_kinematic_loops` with ``method="rk4"`` (``t_final / dt``
+    steps of ``dt``, a whole number, stored every ``store_every`` and at the last), method label
     ``"rk4-generated"``.
 
     Parameters

@@ -231,7 +231,8 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
     n_positions : int
         The length of ``q`` (for the partial result).
     t_final, dt : float
-        End time and RK4 step [s] (``solve_ivp``: ``dt`` the default largest step).
+        End time and RK4 step [s] (RK4: ``t_final`` a whole multiple of ``dt``; ``solve_ivp``: ``dt`` the default
+        largest step).
     method : str
         ``"rk4"`` or a ``solve_ivp`` method (:data:`SOLVE_IVP_METHODS`).
     finish : callable
@@ -279,7 +280,7 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
     start = _time.perf_counter()
     if method == "rk4":
         h = validation.positive("dt", dt)
-        steps = max(1, int(round(t_final / h)))
+        steps = validation.whole_step_count(validation.positive("t_final", t_final), h)
         ts, ys = [0.0], [y0]
         y = y0
 

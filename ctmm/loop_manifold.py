@@ -44,6 +44,7 @@ until the estimated error is below :data:`TANGENT_TARGET` (a modal beam's stiff 
 TANGENT_TARGET = 1e-10
 """Estimated error of the tangent, relative to ``max |A|``, at which :func:`accurate_tangent` stops refining the
 step (smaller steps trade truncation for round-off, which the estimate does not see)."""
+_ZERO_MODE_FACTOR = 8.0     # omega^2 within this times f times the tangent's absolute error is 0 (a neutral mode)
 
 
 def _label(model: Any) -> str:
@@ -223,33 +224,38 @@ def newton_equilibrium(model: Any, q: np.ndarray, t: float = 0.0, *, tolerance: 
                      "80 Newton steps, or a singular or neutral tangent stiffness: give a better guess)")
 
 
-def _squared_frequencies(model: Any, A: np.ndarray, verb: str) -> np.ndarray:
+def _squared_frequencies(model: Any, A: np.ndarray, verb: str, error: float = 0.0) -> np.ndarray:
     """``omega^2`` [1/s^2] of the tangent ``A`` about an equilibrium, ascending (checks of
-    :func:`undamped_frequencies`)."""
+    :func:`undamped_frequencies`); entries within the tangent's estimated error ``error`` (relative to ``max |A|``,
+    :func:`accurate_tangent`) count as zero."""
     f = A.shape[0] // 2
-    if np.max(np.abs(A[f:, f:]), initial=0.0) > 1e-6 * np.sqrt(np.max(np.abs(A[f:, :f]), initial=1e-300)):
+    floor = _ZERO_MODE_FACTOR * f * error * np.max(np.abs(A), initial=0.0)    # what the differences resolve
+    if np.max(np.abs(A[f:, f:]), initial=0.0) > max(1e-6 * np.sqrt(np.max(np.abs(A[f:, :f]), initial=1e-300)), floor):
         raise ModelError(f"{_label(model)}: {verb} needs an undamped model (velocity-dependent forces at q0)")
     squared = np.linalg.eigvals(-A[f:, :f])
-    scale = np.max(np.abs(squared), initial=1e-300)
-    if np.any(squared.real < -1e-8 * scale) or np.max(np.abs(squared.imag), initial=0.0) > 1e-8 * scale:
+    noise = max(1e-8 * np.max(np.abs(squared), initial=1e-300), floor)
+    if np.any(squared.real < -noise) or np.max(np.abs(squared.imag), initial=0.0) > noise:
         raise ModelError(f"{_label(model)}: q0 is not a stable equilibrium (omega^2 = {squared})")
-    return np.sort(np.clip(squared.real, 0.0, None))
+    return np.sort(np.where(np.abs(squared.real) <= floor, 0.0, np.clip(squared.real, 0.0, None)))
 
 
-def undamped_frequencies(model: Any, A: np.ndarray) -> np.ndarray:
+def undamped_frequencies(model: Any, A: np.ndarray, error: float = 0.0) -> np.ndarray:
     """Undamped natural frequencies [rad/s] of the tangent ``A`` about an equilibrium, ascending (a neutral
-    direction, e.g. the free spin of a coupler between two ball joints, gives 0).
+    direction, e.g. the free spin of a coupler between two ball joints, gives 0; ``omega^2`` within ``error``, the
+    tangent's estimated error relative to ``max |A|``, times ``8 f max |A|`` counts as 0: a floating
+    mechanism without springs or gravity).
 
     Raises
     ------
     ModelError
         Velocity-dependent forces (damping), an unstable equilibrium (``omega^2 < 0`` beyond round-off ``1e-8`` of
-        the largest) or complex ``omega^2``.
+        the largest and the tangent's error) or complex ``omega^2``.
     """
-    return np.sqrt(_squared_frequencies(model, A, "natural_frequencies"))
+    return np.sqrt(_squared_frequencies(model, A, "natural_frequencies", error))
 
 
-def undamped_modes(model: Any, A: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def undamped_modes(model: Any, A: np.ndarray, basis: np.ndarray, error: float = 0.0
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """Undamped natural frequencies [rad/s] (as :func:`undamped_frequencies`) and mode shapes in the tree's velocity
     space (planar: the tree coordinates) of the tangent ``A`` about an equilibrium.
 
@@ -271,7 +277,7 @@ def undamped_modes(model: Any, A: np.ndarray, basis: np.ndarray) -> tuple[np.nda
     ModelError
         As :func:`undamped_frequencies` (verb ``mode_shapes``).
     """
-    squared = _squared_frequencies(model, A, "mode_shapes")
+    squared = _squared_frequencies(model, A, "mode_shapes", error)
     f = squared.size
     stiffness = -A[f:, :f]
     cluster = 1e-8 * max(float(squared[-1]) if f else 0.0, 1e-300)

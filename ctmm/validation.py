@@ -297,6 +297,20 @@ def step_count(t_final: float, t0: float, dt: float, *, bytes_per_step: float = 
     return int(round(steps))
 
 
+def whole_step_count(t_final: float, dt: float) -> int:
+    """Number of fixed steps ``t_final / dt``: a whole number >= 1 (to 1e-9 of ``t_final``), else :class:`ModelError`.
+
+    Parameters
+    ----------
+    t_final, dt : float
+        End time and step [s] (already validated > 0; the run starts at 0).
+    """
+    steps = int(round(t_final / dt))
+    if steps < 1 or abs(steps * dt - t_final) > 1e-9 * t_final:
+        raise ModelError(f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}")
+    return steps
+
+
 def nonempty_array(name: str, value: Any) -> np.ndarray:
     """A non-empty array of finite real numbers (e.g. a sweep of gains) or raise."""
     array = finite_array(name, value)

@@ -161,3 +161,23 @@ def test_a_frequency_at_a_pole_is_refused_naming_the_model():
     with pytest.raises(FrequencyAtPoleError, match=rf"of '{loop.name}' is singular at omega = ") as caught:
         ctmm.frequency_response(loop, [omega_n], input="h1.torque", output="crank.theta", operating_point=point)
     assert "function" not in str(caught.value)
+
+
+@pytest.mark.parametrize("t_final, dt", [(0.0105, 1e-3), (0.01, 3e-3), (0.01, 1.0)])
+def test_rk4_refuses_an_end_time_that_is_not_a_whole_number_of_steps_as_every_fixed_step_path(t_final, dt):
+    """The open loop model's RK4 (numpy and generated, planar and spatial) rounded ``t_final / dt`` and silently
+    ended at 0.010 s for 0.0105 s, at 0.009 s for 0.01 s in steps of 3 ms, and stepped on to 1 s for 0.01 s in
+    steps of 1 s, where the tree, the DT-TMM schemes and the loop driver refuse it; now the same refusal."""
+    from spatial_loop_helpers import rusr
+    planar = four_bar(SPRING)
+    q0, v0 = start(planar)
+    spatial = rusr()
+    q, v = spatial.consistent_state({"h1.angle": 0.1, "h4.angle": 0.1}, {"h1.angle_rate": 3.0}, keep=["h1"])
+    for loop, x0, rates in [(planar, q0, v0), (spatial, q, v)]:
+        for compiled in (None, True):
+            with pytest.raises(ModelError, match=f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}"):
+                ctmm.simulate(loop, t_final, dt, x0=x0, v0=rates, compiled=compiled)
+        with pytest.raises(ModelError, match="whole multiple"):                 # the rule the schemes keep
+            ctmm.simulate(loop, t_final, dt, x0=x0, v0=rates, method="newmark")
+    run = ctmm.simulate(planar, 0.0105, 1e-3, x0=q0, v0=v0, method="DOP853")   # dt: the output grid, not a step
+    assert run.time[-1] == pytest.approx(0.0105, abs=1e-15)

@@ -109,6 +109,31 @@ def test_refusals_name_the_problem():
         KinematicLoopModel(tree, four_bar().cuts, baumgarte=-1.0)
 
 
+def test_cut_names_and_sides_are_refused_at_construction_as_the_spatial_cuts():
+    """Two cuts of one name kept only the second's signals (``"h3.force_x"`` the other cut's force, the first's lost)
+    and a cut named like a tree hinge was refused only when the ports were built; a cut between two points of one
+    rigid body (its rows constant, the compliance zero) ran into "a singular configuration of the loop".  Now each is
+    refused by name when the model is built, as ``SpatialKinematicLoopModel`` and ``SpatialCutJoint`` do."""
+    tree = PlanarModel("six_bar", [
+        Fixed("g", position=(0.0, 0.0)), Fixed("g4", position=(0.4, 0.0)), Fixed("g6", position=(0.9, 0.3)),
+        RigidBody.uniform_link("crank", mass=0.4, length=0.2), SmoothHinge("h1", parent="g", child="crank"),
+        RigidBody.uniform_link("coupler", mass=1.0, length=0.6), SmoothHinge("h2", parent="crank", child="coupler"),
+        RigidBody.uniform_link("rocker", mass=0.8, length=0.5), SmoothHinge("h4", parent="g4", child="rocker"),
+        RigidBody.uniform_link("e", mass=0.3, length=0.5), SmoothHinge("h5", parent="rocker", child="e"),
+        RigidBody.uniform_link("f", mass=0.3, length=0.5), SmoothHinge("h7", parent="g6", child="f")])
+    first = CutJoint("h3", parent="rocker.out", child="coupler.out")
+    for name in ("h3", "h1", "g6", "rocker"):
+        with pytest.raises(ModelError, match=f"duplicate name '{name}' .*differ from each other and from the tree"):
+            KinematicLoopModel(tree, [first, CutJoint(name, parent="f.out", child="e.out")])
+    with pytest.raises(ModelError, match="'coupler.out' and child 'coupler.out' are points of the same rigid body"):
+        KinematicLoopModel(tree, [CutJoint("h3", parent="coupler.out", child="coupler.out")])
+    plate = PlanarModel("plate", [Fixed("g", position=(0.0, 0.0)), SmoothHinge("h", parent="g", child="p"),
+                                  RigidBody("p", mass=1.0, inertia=0.1, outboard={"a": (0.3, 0.0), "b": (0.0, 0.3)})])
+    with pytest.raises(ModelError, match="'p.a' and child 'p.b' are points of the same rigid body 'p'"):
+        KinematicLoopModel(plate, [CutJoint("c", parent="p.a", child="p.b")])
+    KinematicLoopModel(tree, [first, CutJoint("h6", parent="f.out", child="e.out")])     # distinct: accepted
+
+
 def test_the_condition_guard_is_numpys_frobenius_condition_and_refuses_a_folded_linkage():
     """The guard's number (:func:`ctmm.loop_integration.compliance_condition`, computed without numpy's generic
     checks) is ``numpy.linalg.cond(G, "fro")`` to the bit, also for singular and non-finite ``G``; the four-bar folded
@@ -217,3 +242,13 @@ def test_one_evaluation_of_the_terms_for_several_inputs_equals_separate_sweeps(f
         assert all(np.array_equal(one.modal_acceleration[k], alone.modal_acceleration[k])
                    for k in one.modal_acceleration)
     assert not np.array_equal(together[0].qddot, together[1].qddot)     # the inputs act
+
+
+def test_consistent_state_holds_one_coordinate_given_by_name_as_the_spatial_model():
+    """``keep="crank.theta"`` was read character by character ("unknown coordinate 'c'") where the spatial model
+    takes one name; now the crank is held: its angle and rate as given, the cut joints closed."""
+    loop = four_bar()
+    q, v = loop.consistent_state([1.4, 0.5, 1.8], [2.0, 0.0, 0.0], keep="crank.theta")
+    assert (q[0], v[0]) == (1.4, 2.0)
+    phi, rate = loop.constraints(q, v)
+    assert np.max(np.abs(phi)) < 1e-12 and np.max(np.abs(rate)) < 1e-12

@@ -81,3 +81,27 @@ def test_mode_shapes_refuse_what_they_cannot_honour():
         ctmm.mode_shapes(loop, n_modes=1, operating_point=(q0, np.zeros(3)))
     with pytest.raises(ModelError, match="has 1 natural frequencies, n_modes=2"):
         ctmm.mode_shapes(loop, n_modes=2)
+
+
+def test_a_floating_mechanism_without_springs_or_gravity_has_only_neutral_modes_as_its_open_tree():
+    """A four-bar whose ground link floats (``FreeBase``), no gravity, no spring: nothing restores any of its four
+    degrees of freedom (three rigid motions and the mechanism's), so every ``omega`` is 0 -- the open tree's
+    ``natural_frequencies`` says so; the loop model refused "not a stable equilibrium" on the tangent's round-off
+    (``omega^2 = -1.6e-10`` 1/s^2, the differences' estimated error 1.2e-10 of ``max |A|``)."""
+    from ctmm.planar import FreeBase, PlanarModel, RigidBody, SmoothHinge
+    from ctmm.planar.closed_loops import CutJoint, KinematicLoopModel
+    base = RigidBody("b", mass=2.0, inertia=2.0 * 0.7 ** 2 / 12, center_of_mass=(0.35, 0.0),
+                     outboard={"p0": (0.0, 0.0), "p1": (0.7, 0.0)})
+    tree = PlanarModel("floating", [
+        FreeBase("fb", child="b"), base,
+        RigidBody.uniform_link("crank", mass=0.4, length=0.2), SmoothHinge("h1", parent="b.p0", child="crank"),
+        RigidBody.uniform_link("coupler", mass=1.0, length=0.6), SmoothHinge("h2", parent="crank", child="coupler"),
+        RigidBody.uniform_link("rocker", mass=0.8, length=0.5), SmoothHinge("h4", parent="b.p1", child="rocker")],
+        gravity=(0.0, 0.0))
+    loop = KinematicLoopModel(tree, [CutJoint("h3", parent="rocker.out", child="coupler.out")])
+    q, _ = loop.consistent_state([0.0, 0.0, 0.0, 1.57, 0.5, 1.8], np.zeros(6), keep=["crank.theta"])
+    rest = (q, np.zeros(6))
+    assert np.array_equal(ctmm.natural_frequencies(tree, n_modes=6, operating_point=rest), np.zeros(6))
+    assert np.array_equal(ctmm.natural_frequencies(loop, operating_point=rest), np.zeros(4))
+    modes = ctmm.mode_shapes(loop, n_modes=4, operating_point=rest)
+    assert np.array_equal(modes.natural_frequencies, np.zeros(4)) and modes.shapes.shape == (4, 6, 1)

@@ -129,6 +129,11 @@ class KinematicLoopModel:
         cuts = tuple(cuts)
         if not cuts or not all(isinstance(c, CutJoint) for c in cuts):
             raise ModelError(f"KinematicLoopModel: cuts must be a non-empty sequence of CutJoint, got {cuts!r}")
+        taken = {element.name for element in tree.elements}
+        for k, cut in enumerate(cuts):      # the ports and results are keyed by the cut's name
+            if cut.name in taken or cut.name in {c.name for c in cuts[:k]}:
+                raise ModelError(f"KinematicLoopModel: duplicate name {cut.name!r} (cut joint names must differ from "
+                                 "each other and from the tree's elements)")
         self.tree, self.cuts = tree, cuts
         self.baumgarte = validation.nonnegative("baumgarte", baumgarte)
         self.foreshortening = validation.flag("foreshortening", foreshortening)
@@ -346,10 +351,11 @@ class KinematicLoopModel:
     def consistent_state(self, q, qdot, *, keep: Sequence[str] = (), tolerance: float = 1e-12
                          ) -> tuple[np.ndarray, np.ndarray]:
         """A state on the constraints near ``(q, qdot)`` with the coordinates ``keep`` held (e.g. the crank
-        angle and rate of a four-bar): Gauss-Newton on ``Phi = 0`` and a least-squares ``J qdot = 0``."""
+        angle and rate of a four-bar; one name or a sequence): Gauss-Newton on ``Phi = 0`` and a least-squares
+        ``J qdot = 0``."""
         q, qdot = self.tree.state(q, qdot)
         q, qdot = q.astype(float).copy(), qdot.astype(float).copy()
-        held = [self.tree.coordinate_index(name) for name in keep]
+        held = [self.tree.coordinate_index(name) for name in ([keep] if isinstance(keep, str) else keep)]
         free = [k for k in range(len(q)) if k not in held]
         for _ in range(50):
             phi, _ = self.constraints(q, qdot)
@@ -454,9 +460,9 @@ class KinematicLoopModel:
     def natural_frequencies(self, q0, t: float = 0.0) -> np.ndarray:
         """Undamped natural frequencies [rad/s] about the resting state ``q0`` (an equilibrium: refused
         otherwise), ascending, from :meth:`resting_tangent` (:func:`ctmm.loop_manifold.undamped_frequencies`)."""
-        A, basis, q0, _ = self.resting_tangent(q0, t)
+        A, basis, q0, error = self.resting_tangent(q0, t)
         loop_manifold.require_equilibrium(self, A, basis, q0, t, "KinematicLoopModel.equilibrium")
-        return loop_manifold.undamped_frequencies(self, A)
+        return loop_manifold.undamped_frequencies(self, A, error)
 
     def equilibrium(self, q_guess, t: float = 0.0, *, tolerance: float = 1e-10, largest_step: float = 0.2
                     ) -> np.ndarray:
@@ -490,7 +496,7 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
         Initial tree coordinates and rates (checked against the constraints: ``|Phi|``, ``|Phi'| <= 1e-8``,
         :func:`ctmm.loop_integration.check_consistent`).
     t_final : float
-        End time [s].
+        End time [s] (RK4: a whole multiple of ``dt``, as every fixed-step method).
     dt : float, optional
         Fixed step [s] (required for ``"rk4"``).
     method : str

@@ -64,6 +64,11 @@ class CutPoints:
         self.takes_moment = []
         """Per cut: whether its sides take a moment (not at a subsystem node without a rotation DOF)."""
         for cut, sides in zip(cuts, self.sides):
+            (parent, _), (child, _) = sides
+            if parent == child and child not in tree.beams:     # the points of one rigid body never move apart
+                raise ModelError(f"cut joint {cut.name!r}: parent {cut.parent!r} and child {cut.child!r} are points of "
+                                 f"the same rigid body {tree.body_names[child]!r}; a cut joint connects two different "
+                                 "bodies (or a body and a ground point)")
             particles = [self.tree.body_names[j] + "." + self.tree.beams[j].data.end_names[e] for j, e in sides
                          if j >= 0 and not isinstance(e, np.ndarray) and self.is_subsystem(j)
                          and self.tree.beams[j].data.end_rows[e][2] is None]

@@ -373,9 +373,9 @@ def mode_shapes_loops(model: KinematicLoopModel, *, n_modes: int | None = None, 
                          "use ctmm.linearize (eigenvectors of the closed-loop A) or pass model.plant")
     validation.one_mode_limit(n_modes, omega_max)
     q_rest, t = _operating_q(model, operating_point)
-    A, basis, q0, _ = model.resting_tangent(q_rest, t)
+    A, basis, q0, error = model.resting_tangent(q_rest, t)
     require_equilibrium(model, A, basis, q0, t, "KinematicLoopModel.equilibrium")
-    omega, shapes = undamped_modes(model, A, basis)
+    omega, shapes = undamped_modes(model, A, basis, error)
     keep = validation.selected_modes(omega, n_modes, omega_max,
                                      f"kinematic loop model {model.name!r} (one per degree of freedom)")
     return ModalResult(omega[keep], shapes[:, keep].T[:, :, None], ("amplitude",), tuple(model.tree.coordinates))

@@ -130,4 +130,4 @@ def natural_frequencies(model: SpatialKinematicLoopModel, q0: Any, t: float = 0.
         ``q0`` not an equilibrium (:func:`tangent`), velocity-dependent forces at ``q0`` (damping), an unstable
         equilibrium (``omega^2 < 0``).
     """
-    return loop_manifold.undamped_frequencies(model, tangent(model, q0, t)[0])
+    return loop_manifold.undamped_frequencies(model, tangent(model, q0, t)[0], tangent_error(model, q0, t))

@@ -76,7 +76,7 @@ def simulate_spatial_loops(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *
     q0, v0 : array_like or mapping
         Initial tree coordinates and velocities (checked: ``|Phi|``, ``|Phi'| <= 1e-8``).
     t_final : float
-        End time [s].
+        End time [s] (RK4: a whole multiple of ``dt``, as every fixed-step method).
     dt : float, optional
         Fixed step [s] (required for ``"rk4"``; for ``solve_ivp`` the output grid and largest step).
     method : str

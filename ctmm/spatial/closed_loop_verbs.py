@@ -188,13 +188,13 @@ def mode_shapes_spatial_loops(model: Any, *, n_modes: int | None = None, omega_m
     orthonormal basis of its eigenspace in ``z``.  Exactly one of ``n_modes`` and ``omega_max`` [rad/s], as for the
     other models; the frequencies are those of :func:`natural_frequencies_spatial_loops`."""
     from ..spatial_linearization import tangent_names
-    from .closed_loop_linear import tangent
+    from .closed_loop_linear import tangent, tangent_error
 
     model = _plain(model, "mode_shapes")
     validation.one_mode_limit(n_modes, omega_max)
     q0, t = operating_configuration(model, operating_point)
     A, basis, _ = tangent(model, q0, t)
-    omega, shapes = undamped_modes(model, A, basis)
+    omega, shapes = undamped_modes(model, A, basis, tangent_error(model, q0, t))
     names = tangent_names(model.tree)
     if len(names) != shapes.shape[0]:
         raise ModelError(f"mode_shapes: the tree of {model.name!r} has {shapes.shape[0]} velocities but "
