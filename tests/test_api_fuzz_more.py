@@ -320,6 +320,22 @@ def test_bouncing_ball_state_event_in_model_exchange(version):
 
 
 @needs_reference
+def test_feedthrough_takes_64_bit_integer_start_values_exactly():
+    """Feedthrough (FMI 3) copies UInt64_input / Int64_input to its outputs: the FMU's own integer outputs, read
+    through fmpy, are the start values given, bit for bit (2**64 - 1 was refused as 'must be an integer')."""
+    values = {"UInt64_input": 2 ** 64 - 1, "Int64_input": -(2 ** 62) - 1}
+    with pytest.warns(UserWarning, match="fixedInternalStepSize"):
+        controller = FMUController(fmu(3, "Feedthrough"), inputs={}, outputs={"Float64_continuous_output": "m.force"},
+                                   parameters=values, sample_time=0.05)
+    assert controller.parameters == values
+    references = {v.name: v.valueReference for v in controller.model_description.modelVariables}
+    with controller.init(0.0) as state:
+        controller.step(0.0, np.zeros(0), state)
+        assert state.slave.getUInt64([references["UInt64_output"]]) == [2 ** 64 - 1]
+        assert state.slave.getInt64([references["Int64_output"]]) == [-(2 ** 62) - 1]
+
+
+@needs_reference
 def test_unsupported_reference_fmus_are_refused_clearly_and_leave_the_process_clean():
     before_temp = set(os.listdir(tempfile.gettempdir()))
     before_cwd = os.getcwd()

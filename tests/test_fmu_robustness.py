@@ -223,6 +223,28 @@ def test_unconvertible_input_is_a_simulation_error_naming_variable_and_time(own_
         assert ctrl.step(0.1, y, state).outputs[1] == 1.0 + 2  # nothing was sent: the FMU is intact
 
 
+def test_integer_start_values_beyond_2_to_the_53_are_set_exactly():
+    """Int64/UInt64 parameters are Python or numpy integers set as they are: 2**64 - 1 and 2**62 + 1 are not
+    floats (they were compared with their float rounding and refused as 'must be an integer')."""
+    from types import SimpleNamespace
+
+    from ctmm.control.fmu_variables import convert_start_value
+
+    for kind, value in (("UInt64", 2 ** 64 - 1), ("UInt64", np.uint64(2 ** 64 - 1)), ("Int64", 2 ** 62 + 1),
+                        ("Int64", np.int64(-2 ** 63))):
+        variable = SimpleNamespace(name="n", type=kind, declaredType=None, min=None, max=None)
+        converted = convert_start_value(variable, value, 3, "FMU 'x'")
+        assert type(converted) is int and converted == int(value)
+    variable = SimpleNamespace(name="n", type="Int64", declaredType=None, min=None, max=None)
+    with pytest.raises(ModelError, match=r"parameters\['n'\] must be an integer .* got np.float32\(1.5\)"):
+        convert_start_value(variable, np.float32(1.5), 3, "FMU 'x'")
+    with pytest.raises(ModelError, match=r"parameters\['n'\] = 9223372036854775808 is outside the Int64 range"):
+        convert_start_value(variable, 2 ** 63, 3, "FMU 'x'")
+    variable = SimpleNamespace(name="f", type="Float64", declaredType=None, min=None, max=None)
+    with pytest.raises(ModelError, match=r"parameters\['f'\] = 1000.* is outside the Float64 range"):
+        convert_start_value(variable, 10 ** 400, 3, "FMU 'x'")     # an int too large for a float: no OverflowError
+
+
 def test_parameter_and_start_value_errors_name_the_variable(own_fmus):
     path = own_fmus["typed_io_fmi3"]
     cases = [

@@ -166,14 +166,17 @@ def convert_start_value(variable: Any, value: Any, major: int, what: str) -> Any
         raise ModelError(f"{label} must be True or False (the variable has type Boolean), got {value!r}")
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise ModelError(f"{label} must be a real number, got {value!r}")
-    if not math.isfinite(value):
+    if isinstance(value, (int, np.integer)):
+        value = int(value)  # exact: a float would round integers beyond 2**53 (Int64, UInt64)
+    elif not math.isfinite(value):
         raise ModelError(f"{label} must be finite, got {value!r}")
     _within_declared_range(variable, value, label)
     if kind.kind == "float":
-        if kind.dtype == np.float32 and abs(value) > float(np.finfo(np.float32).max):
-            raise ModelError(f"{label} = {value!r} is outside the Float32 range +-3.4e38")
+        limit = float(np.finfo(kind.dtype).max)
+        if abs(value) > limit:
+            raise ModelError(f"{label} = {value!r} is outside the {variable.type} range +-{limit:.2g}")
         return float(value)
-    if float(value) != math.floor(value):
+    if not isinstance(value, int) and value != math.floor(value):
         raise ModelError(f"{label} must be an integer (the variable has type {variable.type}), got {value!r}")
     info = np.iinfo(kind.dtype)
     if not info.min <= int(value) <= info.max:
