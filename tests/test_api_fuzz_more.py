@@ -336,6 +336,19 @@ def test_feedthrough_takes_64_bit_integer_start_values_exactly():
 
 
 @needs_reference
+def test_feedthrough_refuses_a_signal_beyond_the_int64_range_instead_of_wrapping_it():
+    """A measured 2**63 for an Int64 input reached the FMU as -2**63 (its output flipped sign)."""
+    with pytest.warns(UserWarning, match="fixedInternalStepSize"):
+        controller = FMUController(fmu(3, "Feedthrough"), inputs={"Int64_input": "m.x"},
+                                   outputs={"Int64_output": "m.force"}, sample_time=0.05)
+    with controller.init(0.0) as state:
+        assert controller.step(0.0, np.array([2.0 ** 62]), state).outputs[0] == 2.0 ** 62
+        with pytest.raises(ctmm.SimulationError, match=r"'Int64_input' = 9.223372036854776e\+18 at t = 0.05 "
+                                                       r"cannot be converted to the FMU type Int64"):
+            controller.step(0.05, np.array([2.0 ** 63]), state)
+
+
+@needs_reference
 def test_unsupported_reference_fmus_are_refused_clearly_and_leave_the_process_clean():
     before_temp = set(os.listdir(tempfile.gettempdir()))
     before_cwd = os.getcwd()

@@ -11,6 +11,7 @@ from __future__ import annotations
 import gc
 import math
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -243,6 +244,26 @@ def test_integer_start_values_beyond_2_to_the_53_are_set_exactly():
     variable = SimpleNamespace(name="f", type="Float64", declaredType=None, min=None, max=None)
     with pytest.raises(ModelError, match=r"parameters\['f'\] = 1000.* is outside the Float64 range"):
         convert_start_value(variable, 10 ** 400, 3, "FMU 'x'")     # an int too large for a float: no OverflowError
+
+
+def test_64_bit_integer_inputs_at_the_type_limit_are_refused_not_wrapped():
+    """float(2**63 - 1) is 2**63: a signal of 2**63 passed the range check of an Int64 input and was cast to
+    -2**63 (2**64 to a UInt64 input: 0).  The documented contract: outside the type's range is an error."""
+    from types import SimpleNamespace
+
+    from ctmm.control.fmu_variables import ValueChannel, variable_type
+
+    for kind, too_large, largest in (("Int64", 2.0 ** 63, 2.0 ** 63 - 1024), ("UInt64", 2.0 ** 64, 2.0 ** 64 - 2048),
+                                     ("Int32", 2.0 ** 31, 2.0 ** 31 - 1)):
+        channel = ValueChannel(variable_type(SimpleNamespace(type=kind), 3), [0], [0], ["n"])
+        with pytest.raises(SimulationError, match=re.escape(f"input 'n' = {too_large!r} at t = 0.5 cannot be "
+                                                            f"converted to the FMU type {kind};")):
+            channel.load(np.array([too_large]), 0.5, "FMU 'x'")
+        channel.load(np.array([largest]), 0.5, "FMU 'x'")
+        assert int(channel.view[0]) == int(largest)
+    channel = ValueChannel(variable_type(SimpleNamespace(type="Int64"), 3), [0], [0], ["n"])
+    channel.load(np.array([-2.0 ** 63]), 0.5, "FMU 'x'")
+    assert int(channel.view[0]) == -2 ** 63
 
 
 def test_parameter_and_start_value_errors_name_the_variable(own_fmus):

@@ -269,7 +269,8 @@ class ValueChannel:
             bad = ~np.isfinite(values)
             rounded = np.rint(np.where(bad, 0.0, values))
             info = np.iinfo(kind.dtype)
-            bad |= (rounded < float(info.min)) | (rounded > float(info.max))
+            # info.max + 1 is a power of two, exact as a float; float(info.max) of Int64/UInt64 rounds up to it
+            bad |= (rounded < float(info.min)) | (rounded >= float(int(info.max) + 1))
             if not bad.any():
                 self.view[:] = rounded.astype(kind.dtype)
                 return
