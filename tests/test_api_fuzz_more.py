@@ -33,6 +33,7 @@ import scipy.linalg
 import ctmm
 from ctmm import guard, results, stability
 from ctmm.control import FMUController, build_fmu
+from ctmm.control.static_gain import StaticGainController
 from ctmm.elements import Fixed, Free, Mass, Spring
 from ctmm.executors import parallel_map
 
@@ -112,6 +113,9 @@ MORE_CASES: list[tuple[Case, list]] = [
     (Case("ctmm.stability.unstable_root_count", "weights", "numbers",
           lambda v: stability.unstable_root_count(controlled(), weights=v)),
      ["a", [math.nan], [1.0, 2.0, 3.0], Opaque(), [[1.0, 2.0]]]),
+    (Case("ctmm.control.StaticGainController", "limits", "positive numbers",
+          lambda v: StaticGainController(["m.x"], ["m.force"], [[1.0]], limits=v)),
+     [["a"], {"m.force": 1.0}, [1 + 2j], Opaque(), [0.0], "5"]),
 ]
 
 
@@ -130,6 +134,12 @@ def test_valid_neighbours_of_the_refused_values_still_run():
     assert parallel_map(lambda x: x + 1, [1, 2], executor="threads") == [2, 3]
     assert guard.newmark_limit(0.25, 0.5) == math.inf and guard.check_step("N", math.inf, 0.01, math.inf) is None
     assert list(stability.unstable_root_count(controlled(), weights=[1.0])) == [0]
+    gain = StaticGainController(["m.x"], ["m.force"], [[2.0]], limits=[1.5])
+    u, clipped = gain.step(0.0, np.array([1.0]), 0)
+    assert list(u) == [1.5] and clipped == 1                    # clip(2 * 1.0, +-1.5), one clipped sample
+    with pytest.raises(ctmm.SimulationError, match=r"y must be 1 real numbers ordered like \('m.x',\), got "
+                                                   r"array\(\[1., 2.\]\) at t = 0.0 s"):
+        gain.step(0.0, np.array([1.0, 2.0]), 0)                 # was numpy's matmul core-dimension ValueError
 
 
 def test_a_lambda_for_worker_processes_is_refused_before_any_pool_starts():
