@@ -116,6 +116,9 @@ MORE_CASES: list[tuple[Case, list]] = [
     (Case("ctmm.control.StaticGainController", "limits", "positive numbers",
           lambda v: StaticGainController(["m.x"], ["m.force"], [[1.0]], limits=v)),
      [["a"], {"m.force": 1.0}, [1 + 2j], Opaque(), [0.0], "5"]),
+    (Case("ctmm.control.build_fmu", "output_dir", "folder path",
+          lambda v: build_fmu(Path(__file__).parents[1] / "controllers" / "fmu" / "pd_controller", v, compiler="gcc")),
+     [3, ["out"], Opaque()]),
 ]
 
 
