@@ -569,3 +569,39 @@ def test_step_and_build_argument_errors(own_fmus, tmp_path):
             ctrl.step(0.0, np.zeros(2), object())
     with pytest.raises(ModelError, match="compiler must be a C compiler command"):
         build_fmu(controllers.fmu_source("pd_controller"), tmp_path, compiler=None)
+
+
+def test_variables_in_scaled_units_are_converted_to_and_from_si(tmp_path):
+    """A PD FMU whose y is in 'mm' measured from 2 mm (BaseUnit m, factor 0.001, offset 0.002), ydot in 'mm/s' and
+    u in 'kN': the FMU sees (x - 0.002) / 0.001 and x' / 0.001, and ctmm gets 1000 u, as the FMI standard's
+    ``SI value = factor * value + offset`` says (the SI numbers were passed unscaled)."""
+    import ctmm
+    from ctmm.elements import Fixed, Free, Mass, Spring
+
+    source = shutil.copytree(controllers.fmu_source("pd_controller"), tmp_path / "pd_units")
+    xml = (source / "modelDescription.xml").read_text()
+    xml = xml.replace('<Unit name="s"><BaseUnit s="1"/></Unit>',
+                      '<Unit name="s"><BaseUnit s="1"/></Unit>\n'
+                      '    <Unit name="mm_from_rest"><BaseUnit m="1" factor="0.001" offset="0.002"/></Unit>\n'
+                      '    <Unit name="mm/s"><BaseUnit m="1" s="-1" factor="0.001"/></Unit>\n'
+                      '    <Unit name="kN"><BaseUnit kg="1" m="1" s="-2" factor="1000"/></Unit>')
+    for name, unit in (("y", "mm_from_rest"), ("ydot", "mm/s"), ("u", "kN")):
+        head, tail = xml.split(f'name="{name}" ', 1)
+        tail = tail.replace("<Real start=\"0.0\"/>", f'<Real start="0.0" unit="{unit}"/>', 1) if name != "u" \
+            else tail.replace("<Real/>", '<Real unit="kN"/>', 1)
+        xml = head + f'name="{name}" ' + tail
+    (source / "modelDescription.xml").write_text(xml)
+    kp, kd = 2e-3, 1e-4                                   # kN per mm, kN s per mm
+    fmu = FMUController(build_fmu(source, tmp_path / "out", compiler="gcc"), inputs={"y": "m.x", "ydot": "m.v"},
+                        outputs={"u": "m.force"}, parameters={"kp": kp, "kd": kd}, sample_time=0.01)
+    with fmu.init(0.0) as state:
+        x, v = 0.012, -0.3                                # 10 mm from the 2 mm rest, -300 mm/s
+        u, _ = fmu.step(0.0, np.array([x, v]), state)
+    assert u[0] == pytest.approx(1000.0 * (kp * (0.0 - 10.0) - kd * (-300.0)), rel=1e-13)
+    # in a loop: every held sample is the law in SI, u = -1e6 kp (x - 0.002) - 1e6 kd v = -2000 x - 100 v + 4 [N]
+    chain = ctmm.Chain("one", [Fixed("w"), Spring("k", 50.0), Mass("m", 2.0), Free("e")])
+    with_fmu = ctmm.simulate(chain, 0.2, 0.005, x0={"m": x}, controllers=[fmu])
+    held = with_fmu["m.force@samples"]
+    at_samples = with_fmu["m.x"][::2][:len(held)], with_fmu["m.v"][::2][:len(held)]
+    np.testing.assert_allclose(held[:, 1], -2000.0 * at_samples[0] - 100.0 * at_samples[1] + 4.0, rtol=0,
+                               atol=1e-11)
