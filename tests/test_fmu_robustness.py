@@ -605,3 +605,11 @@ def test_variables_in_scaled_units_are_converted_to_and_from_si(tmp_path):
     at_samples = with_fmu["m.x"][::2][:len(held)], with_fmu["m.v"][::2][:len(held)]
     np.testing.assert_allclose(held[:, 1], -2000.0 * at_samples[0] - 100.0 * at_samples[1] + 4.0, rtol=0,
                                atol=1e-11)
+    # a relativeQuantity (a difference of positions, here by its declared type) ignores the offset: x / 0.001
+    gap = xml.replace("</UnitDefinitions>", '</UnitDefinitions>\n  <TypeDefinitions><SimpleType name="Gap">'
+                      '<Real unit="mm_from_rest" relativeQuantity="true"/></SimpleType></TypeDefinitions>')
+    (source / "modelDescription.xml").write_text(gap.replace('unit="mm_from_rest"/>', 'declaredType="Gap"/>'))
+    relative = FMUController(build_fmu(source, tmp_path / "relative", compiler="gcc"), inputs={"y": "m.x"},
+                             outputs={"u": "m.force"}, parameters={"kp": kp}, sample_time=0.01)
+    with relative.init(0.0) as state:
+        assert relative.step(0.0, np.array([x]), state).outputs[0] == pytest.approx(1000.0 * kp * -12.0, rel=1e-13)

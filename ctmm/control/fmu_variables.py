@@ -303,14 +303,17 @@ class ValueChannel:
 def si_scaling(variable: Any, description: Any) -> tuple[float, float]:
     """``(factor, offset)`` of the variable's unit to SI (``<BaseUnit factor offset>`` of its unit definition).
 
-    The SI value is ``factor * value + offset`` (FMI 2.0 sec. 2.2.2, FMI 3.0 sec. 2.4.3); a variable
-    without a unit, or whose unit has no ``BaseUnit``, is taken as SI: ``(1.0, 0.0)``.
+    The SI value is ``factor * value + offset`` (FMI 2.0 sec. 2.2.2, FMI 3.0 sec. 2.4.3); the offset is
+    ignored for a ``relativeQuantity`` (a difference: 10 degC = 10 K); a variable without a unit, or
+    whose unit has no ``BaseUnit``, is taken as SI: ``(1.0, 0.0)``.
     """
-    unit = getattr(variable, "unit", None) or getattr(getattr(variable, "declaredType", None), "unit", None)
+    declared = getattr(variable, "declaredType", None)
+    unit = getattr(variable, "unit", None) or getattr(declared, "unit", None)
+    relative = getattr(variable, "relativeQuantity", None) or getattr(declared, "relativeQuantity", None)
     for definition in getattr(description, "unitDefinitions", None) or ():
         base = getattr(definition, "baseUnit", None)
         if definition.name == unit and base is not None:
-            return float(base.factor or 1.0), float(base.offset or 0.0)
+            return float(base.factor or 1.0), 0.0 if relative else float(base.offset or 0.0)
     return 1.0, 0.0
 
 
