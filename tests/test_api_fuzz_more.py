@@ -33,6 +33,7 @@ import scipy.linalg
 import ctmm
 from ctmm import guard, results, stability
 from ctmm.control import FMUController, build_fmu
+from ctmm.control.static_gain import StaticGainController
 from ctmm.elements import Fixed, Free, Mass, Spring
 from ctmm.executors import parallel_map
 
@@ -112,6 +113,12 @@ MORE_CASES: list[tuple[Case, list]] = [
     (Case("ctmm.stability.unstable_root_count", "weights", "numbers",
           lambda v: stability.unstable_root_count(controlled(), weights=v)),
      ["a", [math.nan], [1.0, 2.0, 3.0], Opaque(), [[1.0, 2.0]]]),
+    (Case("ctmm.control.StaticGainController", "limits", "positive numbers",
+          lambda v: StaticGainController(["m.x"], ["m.force"], [[1.0]], limits=v)),
+     [["a"], {"m.force": 1.0}, [1 + 2j], Opaque(), [0.0], "5"]),
+    (Case("ctmm.control.build_fmu", "output_dir", "folder path",
+          lambda v: build_fmu(Path(__file__).parents[1] / "controllers" / "fmu" / "pd_controller", v, compiler="gcc")),
+     [3, ["out"], Opaque()]),
 ]
 
 
@@ -130,6 +137,12 @@ def test_valid_neighbours_of_the_refused_values_still_run():
     assert parallel_map(lambda x: x + 1, [1, 2], executor="threads") == [2, 3]
     assert guard.newmark_limit(0.25, 0.5) == math.inf and guard.check_step("N", math.inf, 0.01, math.inf) is None
     assert list(stability.unstable_root_count(controlled(), weights=[1.0])) == [0]
+    gain = StaticGainController(["m.x"], ["m.force"], [[2.0]], limits=[1.5])
+    u, clipped = gain.step(0.0, np.array([1.0]), 0)
+    assert list(u) == [1.5] and clipped == 1                    # clip(2 * 1.0, +-1.5), one clipped sample
+    with pytest.raises(ctmm.SimulationError, match=r"y must be 1 real numbers ordered like \('m.x',\), got "
+                                                   r"array\(\[1., 2.\]\) at t = 0.0 s"):
+        gain.step(0.0, np.array([1.0, 2.0]), 0)                 # was numpy's matmul core-dimension ValueError
 
 
 def test_a_lambda_for_worker_processes_is_refused_before_any_pool_starts():
@@ -317,6 +330,35 @@ def test_bouncing_ball_state_event_in_model_exchange(version):
     np.testing.assert_allclose(samples[:, 1], expected, rtol=0, atol=1e-6)
     with pytest.raises(ctmm.ModelError, match=r"parameters\['e'\] = 2.0 is outside the range .*\[0.5, 1\]"):
         FMUController(fmu(version, "BouncingBall"), inputs={}, outputs={"h": "m.force"}, parameters={"e": 2.0})
+
+
+@needs_reference
+def test_feedthrough_takes_64_bit_integer_start_values_exactly():
+    """Feedthrough (FMI 3) copies UInt64_input / Int64_input to its outputs: the FMU's own integer outputs, read
+    through fmpy, are the start values given, bit for bit (2**64 - 1 was refused as 'must be an integer')."""
+    values = {"UInt64_input": 2 ** 64 - 1, "Int64_input": -(2 ** 62) - 1}
+    with pytest.warns(UserWarning, match="fixedInternalStepSize"):
+        controller = FMUController(fmu(3, "Feedthrough"), inputs={}, outputs={"Float64_continuous_output": "m.force"},
+                                   parameters=values, sample_time=0.05)
+    assert controller.parameters == values
+    references = {v.name: v.valueReference for v in controller.model_description.modelVariables}
+    with controller.init(0.0) as state:
+        controller.step(0.0, np.zeros(0), state)
+        assert state.slave.getUInt64([references["UInt64_output"]]) == [2 ** 64 - 1]
+        assert state.slave.getInt64([references["Int64_output"]]) == [-(2 ** 62) - 1]
+
+
+@needs_reference
+def test_feedthrough_refuses_a_signal_beyond_the_int64_range_instead_of_wrapping_it():
+    """A measured 2**63 for an Int64 input reached the FMU as -2**63 (its output flipped sign)."""
+    with pytest.warns(UserWarning, match="fixedInternalStepSize"):
+        controller = FMUController(fmu(3, "Feedthrough"), inputs={"Int64_input": "m.x"},
+                                   outputs={"Int64_output": "m.force"}, sample_time=0.05)
+    with controller.init(0.0) as state:
+        assert controller.step(0.0, np.array([2.0 ** 62]), state).outputs[0] == 2.0 ** 62
+        with pytest.raises(ctmm.SimulationError, match=r"'Int64_input' = 9.223372036854776e\+18 at t = 0.05 "
+                                                       r"cannot be converted to the FMU type Int64"):
+            controller.step(0.05, np.array([2.0 ** 63]), state)
 
 
 @needs_reference

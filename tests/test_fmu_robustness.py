@@ -11,6 +11,7 @@ from __future__ import annotations
 import gc
 import math
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -221,6 +222,48 @@ def test_unconvertible_input_is_a_simulation_error_naming_variable_and_time(own_
         assert info.value.time == pytest.approx(0.1)
         y[column] = 1.0
         assert ctrl.step(0.1, y, state).outputs[1] == 1.0 + 2  # nothing was sent: the FMU is intact
+
+
+def test_integer_start_values_beyond_2_to_the_53_are_set_exactly():
+    """Int64/UInt64 parameters are Python or numpy integers set as they are: 2**64 - 1 and 2**62 + 1 are not
+    floats (they were compared with their float rounding and refused as 'must be an integer')."""
+    from types import SimpleNamespace
+
+    from ctmm.control.fmu_variables import convert_start_value
+
+    for kind, value in (("UInt64", 2 ** 64 - 1), ("UInt64", np.uint64(2 ** 64 - 1)), ("Int64", 2 ** 62 + 1),
+                        ("Int64", np.int64(-2 ** 63))):
+        variable = SimpleNamespace(name="n", type=kind, declaredType=None, min=None, max=None)
+        converted = convert_start_value(variable, value, 3, "FMU 'x'")
+        assert type(converted) is int and converted == int(value)
+    variable = SimpleNamespace(name="n", type="Int64", declaredType=None, min=None, max=None)
+    with pytest.raises(ModelError, match=r"parameters\['n'\] must be an integer .* got np.float32\(1.5\)"):
+        convert_start_value(variable, np.float32(1.5), 3, "FMU 'x'")
+    with pytest.raises(ModelError, match=r"parameters\['n'\] = 9223372036854775808 is outside the Int64 range"):
+        convert_start_value(variable, 2 ** 63, 3, "FMU 'x'")
+    variable = SimpleNamespace(name="f", type="Float64", declaredType=None, min=None, max=None)
+    with pytest.raises(ModelError, match=r"parameters\['f'\] = 1000.* is outside the Float64 range"):
+        convert_start_value(variable, 10 ** 400, 3, "FMU 'x'")     # an int too large for a float: no OverflowError
+
+
+def test_64_bit_integer_inputs_at_the_type_limit_are_refused_not_wrapped():
+    """float(2**63 - 1) is 2**63: a signal of 2**63 passed the range check of an Int64 input and was cast to
+    -2**63 (2**64 to a UInt64 input: 0).  The documented contract: outside the type's range is an error."""
+    from types import SimpleNamespace
+
+    from ctmm.control.fmu_variables import ValueChannel, variable_type
+
+    for kind, too_large, largest in (("Int64", 2.0 ** 63, 2.0 ** 63 - 1024), ("UInt64", 2.0 ** 64, 2.0 ** 64 - 2048),
+                                     ("Int32", 2.0 ** 31, 2.0 ** 31 - 1)):
+        channel = ValueChannel(variable_type(SimpleNamespace(type=kind), 3), [0], [0], ["n"])
+        with pytest.raises(SimulationError, match=re.escape(f"input 'n' = {too_large!r} at t = 0.5 cannot be "
+                                                            f"converted to the FMU type {kind};")):
+            channel.load(np.array([too_large]), 0.5, "FMU 'x'")
+        channel.load(np.array([largest]), 0.5, "FMU 'x'")
+        assert int(channel.view[0]) == int(largest)
+    channel = ValueChannel(variable_type(SimpleNamespace(type="Int64"), 3), [0], [0], ["n"])
+    channel.load(np.array([-2.0 ** 63]), 0.5, "FMU 'x'")
+    assert int(channel.view[0]) == -2 ** 63
 
 
 def test_parameter_and_start_value_errors_name_the_variable(own_fmus):
@@ -526,3 +569,47 @@ def test_step_and_build_argument_errors(own_fmus, tmp_path):
             ctrl.step(0.0, np.zeros(2), object())
     with pytest.raises(ModelError, match="compiler must be a C compiler command"):
         build_fmu(controllers.fmu_source("pd_controller"), tmp_path, compiler=None)
+
+
+def test_variables_in_scaled_units_are_converted_to_and_from_si(tmp_path):
+    """A PD FMU whose y is in 'mm' measured from 2 mm (BaseUnit m, factor 0.001, offset 0.002), ydot in 'mm/s' and
+    u in 'kN': the FMU sees (x - 0.002) / 0.001 and x' / 0.001, and ctmm gets 1000 u, as the FMI standard's
+    ``SI value = factor * value + offset`` says (the SI numbers were passed unscaled)."""
+    import ctmm
+    from ctmm.elements import Fixed, Free, Mass, Spring
+
+    source = shutil.copytree(controllers.fmu_source("pd_controller"), tmp_path / "pd_units")
+    xml = (source / "modelDescription.xml").read_text()
+    xml = xml.replace('<Unit name="s"><BaseUnit s="1"/></Unit>',
+                      '<Unit name="s"><BaseUnit s="1"/></Unit>\n'
+                      '    <Unit name="mm_from_rest"><BaseUnit m="1" factor="0.001" offset="0.002"/></Unit>\n'
+                      '    <Unit name="mm/s"><BaseUnit m="1" s="-1" factor="0.001"/></Unit>\n'
+                      '    <Unit name="kN"><BaseUnit kg="1" m="1" s="-2" factor="1000"/></Unit>')
+    for name, unit in (("y", "mm_from_rest"), ("ydot", "mm/s"), ("u", "kN")):
+        head, tail = xml.split(f'name="{name}" ', 1)
+        tail = tail.replace("<Real start=\"0.0\"/>", f'<Real start="0.0" unit="{unit}"/>', 1) if name != "u" \
+            else tail.replace("<Real/>", '<Real unit="kN"/>', 1)
+        xml = head + f'name="{name}" ' + tail
+    (source / "modelDescription.xml").write_text(xml)
+    kp, kd = 2e-3, 1e-4                                   # kN per mm, kN s per mm
+    fmu = FMUController(build_fmu(source, tmp_path / "out", compiler="gcc"), inputs={"y": "m.x", "ydot": "m.v"},
+                        outputs={"u": "m.force"}, parameters={"kp": kp, "kd": kd}, sample_time=0.01)
+    with fmu.init(0.0) as state:
+        x, v = 0.012, -0.3                                # 10 mm from the 2 mm rest, -300 mm/s
+        u, _ = fmu.step(0.0, np.array([x, v]), state)
+    assert u[0] == pytest.approx(1000.0 * (kp * (0.0 - 10.0) - kd * (-300.0)), rel=1e-13)
+    # in a loop: every held sample is the law in SI, u = -1e6 kp (x - 0.002) - 1e6 kd v = -2000 x - 100 v + 4 [N]
+    chain = ctmm.Chain("one", [Fixed("w"), Spring("k", 50.0), Mass("m", 2.0), Free("e")])
+    with_fmu = ctmm.simulate(chain, 0.2, 0.005, x0={"m": x}, controllers=[fmu])
+    held = with_fmu["m.force@samples"]
+    at_samples = with_fmu["m.x"][::2][:len(held)], with_fmu["m.v"][::2][:len(held)]
+    np.testing.assert_allclose(held[:, 1], -2000.0 * at_samples[0] - 100.0 * at_samples[1] + 4.0, rtol=0,
+                               atol=1e-11)
+    # a relativeQuantity (a difference of positions, here by its declared type) ignores the offset: x / 0.001
+    gap = xml.replace("</UnitDefinitions>", '</UnitDefinitions>\n  <TypeDefinitions><SimpleType name="Gap">'
+                      '<Real unit="mm_from_rest" relativeQuantity="true"/></SimpleType></TypeDefinitions>')
+    (source / "modelDescription.xml").write_text(gap.replace('unit="mm_from_rest"/>', 'declaredType="Gap"/>'))
+    relative = FMUController(build_fmu(source, tmp_path / "relative", compiler="gcc"), inputs={"y": "m.x"},
+                             outputs={"u": "m.force"}, parameters={"kp": kp}, sample_time=0.01)
+    with relative.init(0.0) as state:
+        assert relative.step(0.0, np.array([x]), state).outputs[0] == pytest.approx(1000.0 * kp * -12.0, rel=1e-13)

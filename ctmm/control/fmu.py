@@ -41,7 +41,7 @@ from .fmu_description import fmi_headers_dir, fmi_major_version, read_descriptio
 from .fmu_loading import check_library, construct_instance, extract_fmu
 from .fmu_model_exchange import ModelExchangeIntegrator
 from .fmu_state import FMUControllerState, FMUSnapshot
-from .fmu_variables import ValueChannel, mapped_variable, settable_values, variable_type
+from .fmu_variables import ValueChannel, mapped_variable, settable_values, si_scaling, variable_type
 from .protocol import ControllerStep
 
 __all__ = ["build_fmu", "fmi_headers_dir", "FMUController", "FMUControllerState", "FMUSnapshot"]
@@ -61,7 +61,8 @@ class FMUController:
     inputs : mapping of str to str
         FMU input variable name -> ctmm signal it reads, e.g. ``{"y": "m6.x", "ydot": "m6.v"}``.
         Types Real/Float64, Float32, Integer/Int8...UInt64, Enumeration and Boolean are accepted
-        (converted as described in :mod:`ctmm.control.fmu_variables`).
+        (converted as described in :mod:`ctmm.control.fmu_variables`; values in a unit with a
+        ``BaseUnit`` factor/offset are converted from and to SI).
     outputs : mapping of str to str
         FMU output variable name -> ctmm signal it writes, e.g. ``{"u": "m2.force"}``; same types.
     parameters : mapping of str to value, optional
@@ -204,8 +205,8 @@ class FMUController:
             settings=tuple(settings.values()),
             discrete_inputs=any(variables[n].variability == "discrete"
                                 or variable_type(variables[n], major).kind != "float" for n in mapped_in),
-            input_groups=_group_by_type([variables[n] for n in mapped_in], major),
-            output_groups=_group_by_type([variables[n] for n in mapped_out], major),
+            input_groups=_group_by_type([variables[n] for n in mapped_in], major, description),
+            output_groups=_group_by_type([variables[n] for n in mapped_out], major, description),
         )
         for key, value in attrs.items():
             object.__setattr__(self, key, value)
@@ -293,7 +294,7 @@ class FMUController:
     def make_channels(self, which: str) -> list[ValueChannel]:
         """Fresh typed value buffers for the mapped ``"inputs"`` or ``"outputs"`` (one per FMI type)."""
         groups = self.input_groups if which == "inputs" else self.output_groups
-        return [ValueChannel(kind, references, positions, names) for kind, references, positions, names in groups]
+        return [ValueChannel(*group) for group in groups]
 
     # -- protocol
     def init(self, t0: float = 0.0) -> FMUControllerState:
@@ -440,7 +441,7 @@ class FMUController:
             for channel, getter in zip(state.output_channels, state.getters):
                 function = f"fmi{self.fmi_version}Get{channel.kind.function}"
                 exchange(getter, component, channel, fmi3)
-                state.outputs[channel.positions] = channel.view
+                state.outputs[channel.positions] = channel.read()
             if state.integrator is not None:
                 function = "model-exchange integration (RK4)"
                 state.integrator.advance(t_fmu, h)
@@ -565,13 +566,14 @@ def _checked(check: Any, name: str, value: Any, what: str) -> float:
         raise ModelError(f"{what}: {exc}") from exc
 
 
-def _group_by_type(variables: list, major: int) -> tuple:
-    """Mapped variables grouped by FMI type: (type, value references, positions, names) per type."""
+def _group_by_type(variables: list, major: int, description: Any) -> tuple:
+    """Mapped variables grouped by FMI type: (type, value references, positions, names, unit scalings) per type."""
     groups: dict[str, list] = {}
     for position, variable in enumerate(variables):
         groups.setdefault(variable.type, []).append((position, variable))
     return tuple((variable_type(members[0][1], major), tuple(v.valueReference for _, v in members),
-                  tuple(p for p, _ in members), tuple(v.name for _, v in members))
+                  tuple(p for p, _ in members), tuple(v.name for _, v in members),
+                  tuple(si_scaling(v, description) for _, v in members))
                  for members in groups.values())
 
 

@@ -138,6 +138,8 @@ def build_fmu(source_dir: str | os.PathLike, output_dir: str | os.PathLike | Non
     """
     if not isinstance(source_dir, (str, os.PathLike)) or str(source_dir) == "":
         raise ModelError(f"source_dir must be a folder or an .fmu file, got {source_dir!r}")
+    if output_dir is not None and (not isinstance(output_dir, (str, os.PathLike)) or str(output_dir) == ""):
+        raise ModelError(f"output_dir must be a folder path or None (the cache), got {output_dir!r}")
     source = Path(source_dir)
     if source.is_file():
         if not zipfile.is_zipfile(source):

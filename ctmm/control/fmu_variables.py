@@ -13,7 +13,8 @@ Boolean                    input: true when ``y != 0`` (NaN is an error); output
 Enumeration                like Integer
 =========================  ====================================================================
 
-Outputs are converted to ``float64`` (exact, except Int64/UInt64 beyond 2**53).  String, Binary
+Outputs are converted to ``float64`` (exact, except Int64/UInt64 beyond 2**53).  A variable whose unit has
+a ``BaseUnit`` with ``factor``/``offset`` is converted from and to SI (:func:`si_scaling`).  String, Binary
 and Clock variables, and FMI 3 array variables (``<Dimension>``), cannot be mapped to signals and
 are refused at construction.  Parameters and start values are set by name with the type's own
 value (float, integral number, bool or str).
@@ -29,7 +30,7 @@ import numpy as np
 
 from ..errors import ModelError, SimulationError, UnknownNameError, unknown_name
 
-__all__ = ["VariableType", "variable_type", "mapped_variable", "settable_values", "ValueChannel"]
+__all__ = ["VariableType", "variable_type", "mapped_variable", "settable_values", "ValueChannel", "si_scaling"]
 
 
 @dataclass(frozen=True)
@@ -166,14 +167,17 @@ def convert_start_value(variable: Any, value: Any, major: int, what: str) -> Any
         raise ModelError(f"{label} must be True or False (the variable has type Boolean), got {value!r}")
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise ModelError(f"{label} must be a real number, got {value!r}")
-    if not math.isfinite(value):
+    if isinstance(value, (int, np.integer)):
+        value = int(value)  # exact: a float would round integers beyond 2**53 (Int64, UInt64)
+    elif not math.isfinite(value):
         raise ModelError(f"{label} must be finite, got {value!r}")
     _within_declared_range(variable, value, label)
     if kind.kind == "float":
-        if kind.dtype == np.float32 and abs(value) > float(np.finfo(np.float32).max):
-            raise ModelError(f"{label} = {value!r} is outside the Float32 range +-3.4e38")
+        limit = float(np.finfo(kind.dtype).max)
+        if abs(value) > limit:
+            raise ModelError(f"{label} = {value!r} is outside the {variable.type} range +-{limit:.2g}")
         return float(value)
-    if float(value) != math.floor(value):
+    if not isinstance(value, int) and value != math.floor(value):
         raise ModelError(f"{label} must be an integer (the variable has type {variable.type}), got {value!r}")
     info = np.iinfo(kind.dtype)
     if not info.min <= int(value) <= info.max:
@@ -231,15 +235,21 @@ class ValueChannel:
         Index of each variable in the ctmm input vector ``y`` or output vector ``u``.
     names : sequence of str
         Variable names (for error messages).
+    scalings : sequence of (float, float), optional
+        ``(factor, offset)`` of each variable's unit (:func:`si_scaling`): the SI value of a signal is
+        ``factor * value + offset`` of the FMU's value; default: the FMU's values are SI values.
     """
 
     def __init__(self, kind: VariableType, value_references: Sequence[int], positions: Sequence[int],
-                 names: Sequence[str]) -> None:
+                 names: Sequence[str], scalings: Sequence[tuple[float, float]] | None = None) -> None:
         n = len(value_references)
         self.kind = kind
         self.count = n
         self.positions = np.asarray(positions, dtype=np.intp)
         self.names = tuple(names)
+        scalings = np.array(scalings, dtype=float).reshape(n, 2) if scalings else np.tile([1.0, 0.0], (n, 1))
+        self.factors, self.offsets = scalings[:, 0], scalings[:, 1]
+        self.scaled = bool(np.any(self.factors != 1.0) or np.any(self.offsets != 0.0))
         self.references = (ctypes.c_uint32 * n)(*value_references)
         self.buffer = (kind.ctype * n)()
         self.view = np.ctypeslib.as_array(self.buffer).view(kind.dtype) if n else np.zeros(0, kind.dtype)
@@ -253,6 +263,9 @@ class ValueChannel:
             A value that cannot be converted (NaN for Integer/Boolean, out of range).
         """
         values = y[self.positions]
+        signals = values
+        if self.scaled:  # SI signal -> the FMU's unit
+            values = (values - self.offsets) / self.factors
         kind = self.kind
         if kind.dtype == np.float64:
             self.view[:] = values
@@ -266,7 +279,8 @@ class ValueChannel:
             bad = ~np.isfinite(values)
             rounded = np.rint(np.where(bad, 0.0, values))
             info = np.iinfo(kind.dtype)
-            bad |= (rounded < float(info.min)) | (rounded > float(info.max))
+            # info.max + 1 is a power of two, exact as a float; float(info.max) of Int64/UInt64 rounds up to it
+            bad |= (rounded < float(info.min)) | (rounded >= float(int(info.max) + 1))
             if not bad.any():
                 self.view[:] = rounded.astype(kind.dtype)
                 return
@@ -276,8 +290,31 @@ class ValueChannel:
                 self.view[:] = values != 0.0
                 return
         index = int(np.flatnonzero(bad)[0])
-        raise SimulationError(f"{what}: input {self.names[index]!r} = {float(values[index])!r} at t = {time!r} cannot be "
-                              f"converted to the FMU type {kind.name}; allowed: {_range_text(kind)}", time=time)
+        unit = f" ({float(values[index])!r} in the FMU's unit)" if self.scaled else ""
+        raise SimulationError(f"{what}: input {self.names[index]!r} = {float(signals[index])!r}{unit} at t = {time!r} "
+                              f"cannot be converted to the FMU type {kind.name}; allowed: {_range_text(kind)}", time=time)
+
+    def read(self) -> np.ndarray:
+        """The values in the buffer as float64 SI values (after an fmiXGet* call)."""
+        values = self.view.astype(float)
+        return values * self.factors + self.offsets if self.scaled else values
+
+
+def si_scaling(variable: Any, description: Any) -> tuple[float, float]:
+    """``(factor, offset)`` of the variable's unit to SI (``<BaseUnit factor offset>`` of its unit definition).
+
+    The SI value is ``factor * value + offset`` (FMI 2.0 sec. 2.2.2, FMI 3.0 sec. 2.4.3); the offset is
+    ignored for a ``relativeQuantity`` (a difference: 10 degC = 10 K); a variable without a unit, or
+    whose unit has no ``BaseUnit``, is taken as SI: ``(1.0, 0.0)``.
+    """
+    declared = getattr(variable, "declaredType", None)
+    unit = getattr(variable, "unit", None) or getattr(declared, "unit", None)
+    relative = getattr(variable, "relativeQuantity", None) or getattr(declared, "relativeQuantity", None)
+    for definition in getattr(description, "unitDefinitions", None) or ():
+        base = getattr(definition, "baseUnit", None)
+        if definition.name == unit and base is not None:
+            return float(base.factor or 1.0), 0.0 if relative else float(base.offset or 0.0)
+    return 1.0, 0.0
 
 
 def _range_text(kind: VariableType) -> str:

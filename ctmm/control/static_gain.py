@@ -81,8 +81,11 @@ class StaticGainController:
         object.__setattr__(self, "outputs", outputs)
         object.__setattr__(self, "gains", K)
         if self.limits is not None:
-            limits = np.array(self.limits, dtype=float, ndmin=1) if not isinstance(self.limits, (str, bool)) \
-                else np.zeros(0)
+            try:
+                limits = np.array(self.limits, dtype=float, ndmin=1) if not isinstance(self.limits, (str, bool)) \
+                    else np.zeros(0)
+            except (TypeError, ValueError):  # a mapping, text, complex numbers: refused below by name
+                limits = np.zeros(0)
             if limits.shape != (len(outputs),) or np.any(np.isnan(limits)) or np.any(limits <= 0):
                 raise ModelError(f"StaticGainController: limits must be {len(outputs)} values > 0 (inf: no limit) "
                                  f"[actuator unit], one per output, got {self.limits!r}")
@@ -98,7 +101,14 @@ class StaticGainController:
 
     def step(self, t: float, y: np.ndarray, state: int) -> ControllerStep:
         """``u = clip(K y)`` valid from ``t`` [s]; the state counts the clipped samples."""
-        u = self.gains @ np.asarray(y, dtype=float)
+        try:
+            values = np.asarray(y, dtype=float)
+        except (TypeError, ValueError):
+            values = None
+        if values is None or values.shape != (len(self.inputs),):
+            raise SimulationError(f"StaticGainController: y must be {len(self.inputs)} real numbers ordered like "
+                                  f"{self.inputs}, got {y!r} at t = {t!r} s", time=float(t))
+        u = self.gains @ values
         if not np.all(np.isfinite(u)):
             raise SimulationError(f"StaticGainController: non-finite output at t = {t!r} s from inputs {y!r}",
                                   time=float(t))
