@@ -12,19 +12,22 @@ from pathlib import Path
 
 import pytest
 
-PACKAGE = Path(__file__).resolve().parents[1] / "ctmm"
+ROOT = Path(__file__).resolve().parents[1]
+#: folders of the installed package and their dotted prefix (``controllers/`` is ``ctmm.controllers``)
+FOLDERS = ((ROOT / "ctmm", ("ctmm",)), (ROOT / "controllers", ("ctmm", "controllers")))
 
 
 def modules_with_examples() -> list[str]:
     """Dotted names of the package's modules whose source holds a ``>>>`` example."""
     names = []
-    for path in sorted(PACKAGE.rglob("*.py")):
-        if ">>> " not in path.read_text(encoding="utf-8"):
-            continue
-        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
-        if parts[-1] == "__init__":
-            parts = parts[:-1]
-        names.append(".".join(parts))
+    for folder, prefix in FOLDERS:
+        for path in sorted(folder.rglob("*.py")):
+            if ">>> " not in path.read_text(encoding="utf-8"):
+                continue
+            parts = prefix + path.relative_to(folder).with_suffix("").parts
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            names.append(".".join(parts))
     return names
 
 
