@@ -16,7 +16,7 @@ actuator inputs of loops, controllers or open-loop inputs [N] on the element inp
 three interleaved probes give the three diagonals of a chain whose nodes are coupled to their
 neighbours only; a chain with inerters couples every node through its mass matrix, its matrices are
 read column by column up to :data:`DENSE_LIMIT` nodes) and then **certifies** them against the
-sweep at random states, times and inputs (relative 1e-10): a family whose terms are not affine, or a
+sweep at random states and inputs at the run's start time (relative 1e-10): a family whose terms are not affine, or a
 coupling the probes did not see, is never used -- :func:`linear_rates` returns ``None`` and the
 caller keeps the sweep.  A rate evaluation is then one sparse mat-vec, ``O(n)`` with no Python loop
 over elements (:mod:`ctmm.chain_ode`, ``benchmarks/chain_ode_speed.py``).
@@ -190,9 +190,11 @@ class LinearRates:
                     out[i] += float(value) * self.column(position, name)
         return out
 
-    def certify(self, trials: int = 2, seed: int = 12) -> bool:
+    def certify(self, trials: int = 2, seed: int = 12, time: float = 0.0) -> bool:
         """Whether the form equals the sweep (relative :data:`CERTIFY_TOLERANCE`) at ``trials`` random
-        states, times and actuator inputs."""
+        states and actuator inputs, at ``time`` [s]: the run's start, so that a user's load function is
+        called only where the run calls it (random times outside the run once failed functions defined
+        on the run's interval alone)."""
         dynamics, m = self.dynamics, self.m
         rng = np.random.default_rng(seed)
         chain = dynamics.chain
@@ -204,7 +206,7 @@ class LinearRates:
             self._columns[key] = column
         for keys in chosen:
             x, v = rng.standard_normal(m) * 0.01, rng.standard_normal(m) * 0.01
-            t = float(rng.uniform(0.0, 3.0))
+            t = time
             extra = {position: {name: float(rng.standard_normal())} for position, name in keys}
             swept = dynamics.swept_rate(t, np.concatenate([x, v]), extra)[m:]
             affine = self.accelerations(t, x, v, extra)
@@ -215,16 +217,16 @@ class LinearRates:
         return True
 
 
-def linear_rates(dynamics: Any) -> LinearRates | None:
-    """The certified :class:`LinearRates` of ``dynamics``, or ``None`` where the sweep must stay (massless
-    nodes, connectors with a nonlinear law, rates that are not affine, inerter-coupled chains above
-    :data:`DENSE_LIMIT` moving nodes)."""
+def linear_rates(dynamics: Any, time: float = 0.0) -> LinearRates | None:
+    """The certified :class:`LinearRates` of ``dynamics`` (certified at ``time`` [s], :meth:`LinearRates.certify`),
+    or ``None`` where the sweep must stay (massless nodes, connectors with a nonlinear law, rates that are not
+    affine, inerter-coupled chains above :data:`DENSE_LIMIT` moving nodes)."""
     if dynamics.index_Q.size or any(hasattr(e, "law") and not e.is_point for e in dynamics.chain.body):
         return None
     for banded in (True, False):
         if not banded and dynamics.index_I.size > DENSE_LIMIT:
             return None
         form = LinearRates(dynamics, banded=banded)
-        if form.certify():
+        if form.certify(time=time):
             return form
     return None

@@ -96,6 +96,7 @@ class ChainDynamics:
                                  if hasattr(end, "displacement") else (lambda t, p=end.position: (p, 0.0, 0.0)))
         self.node_of_point = np.array([tree.node[b] if b >= 0 else -1 for b in tree.point_body])
         self._linear: LinearRates | None | bool = False if affine else None      # read on first use
+        self.start_time = 0.0         # [s] of the run (consistent_start): user loads are called there, not before
         q = self.index_Q
         self.n_r = 0
         if q.size and not balance_only:   # balance_only: forces, inputs, nodes (massless_points.balanced_start)
@@ -296,7 +297,7 @@ class ChainDynamics:
     def linear(self) -> LinearRates | None:
         """The certified affine rates (:func:`ctmm.chain_affine.linear_rates`), ``None`` where the sweep stays."""
         if self._linear is False:
-            self._linear = linear_rates(self)
+            self._linear = linear_rates(self, self.start_time)
         return self._linear
 
     def boundary_motion(self, t: float) -> tuple[float, float, float, float, float, float]:
@@ -325,7 +326,7 @@ class ChainDynamics:
         puts them (the DT-TMM paths start a prescribed support there).
         """
         x_points, v_points = initial_state(self.chain, x0, v0)
-        n, I, q = self.tree.n_nodes, self.index_I, self.index_Q
+        n, I, q, self.start_time = self.tree.n_nodes, self.index_I, self.index_Q, float(t0)
         x, v = np.zeros(n), np.zeros(n)
         for p, k in enumerate(self.node_of_point):
             if k >= 0:

@@ -12,7 +12,7 @@ A spatial model of rigid bodies and modal beams (:class:`~ctmm.spatial.model.Spa
 the form of :mod:`ctmm.sensitivity_planar`, so every formula of :mod:`ctmm.sensitivity` applies.  Here
 ``A``, ``B`` and ``C`` are Jacobians of the accelerations ``f(q* (+) a (+) b, v, u, p)`` and of the sensors
 stated on casadi symbols: the one articulated sweep with the model's numbers ``p`` as inputs
-(:func:`ctmm.compiled_spatial_loops.loop_acceleration` with ``numbers="inputs"``; port actuators ``u``),
+(:func:`ctmm.compiled_spatial_loops.loop_acceleration` with a ``layout``; port actuators ``u``),
 the sensors of :class:`ctmm.compiled_spatial_loops.SpatialSymbols`, and the retraction ``(+)`` on symbols
 (quaternion exponential to third order: exact first and second derivatives at ``r = 0``).  Their
 derivatives are casadi's algorithmic differentiation, no differences:

@@ -5,7 +5,7 @@ alone or closed by loops (``ctmm.control.with_feedback``), the RK4 step ``y_{k+1
 ``y = [q, v]`` (quaternions integrated as coordinates, ``q_dot = G(q) v``; with loops ``[q, v, z, ring]``,
 :class:`ctmm.compiled_loops.ClosedLoops` on :class:`ctmm.compiled_spatial_loops.SpatialSymbols`) is stated on
 casadi symbols with the model's numbers as inputs (:func:`ctmm.compiled_spatial_loops.loop_acceleration`
-with ``numbers="inputs"``: the one articulated sweep, :mod:`ctmm.compiled_spatial_parameters`), and the loop
+with a ``layout``: the one articulated sweep, :mod:`ctmm.compiled_spatial_parameters`), and the loop
 numbers are directions in the same parameter column (:mod:`ctmm.sensitivity_loop_numbers`).  The forward
 sensitivities ``S_{k+1} = dPhi/dy S_k + dPhi/dp`` are folded with the state by casadi's algorithmic
 differentiation (:func:`ctmm.sensitivity_time.forward_sensitivities`): the exact derivative of the RK4

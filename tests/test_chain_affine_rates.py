@@ -110,3 +110,27 @@ def test_stored_accelerations_and_forces_of_a_controlled_run_obey_the_global_equ
     # the spring-damper k1 carries -k dx - c dv at both of its points
     assert np.allclose(result["k1.f"], -50.0 * (x[:, 1] - x[:, 0]) - 0.1 * (v[:, 1] - v[:, 0]), rtol=1e-12,
                        atol=1e-12)
+
+
+@pytest.mark.parametrize("method", ["rk4", "RK45"])
+@pytest.mark.parametrize("t0", [0.0, 5.0])
+def test_a_load_function_is_called_only_inside_the_run(method, t0):
+    """The affine rates are certified at the run's start: a user's load defined on the run's interval alone
+    (a table, an interpolant that raises outside its data) is never called outside ``[t0, t_final]``.  They
+    were certified at random times in [0, 3) s, which failed a 0.1 s run with "raised ... at t = 0.54 s"."""
+    calls: list[float] = []
+
+    def force(t: float) -> float:
+        if t == 0.0 and not calls:         # the construction's probe f(0.0) (ctmm.signals.as_signal)
+            calls.append(float("nan"))
+            return 1.0
+        calls.append(float(t))
+        if not t0 - 1e-9 <= t <= t0 + 0.1 + 1e-9:     # the run's interval (with the steps' round-off)
+            raise ValueError(f"outside the data: t = {t}")
+        return 1.0
+
+    chain = ctmm.Chain("c", [Fixed("g"), SpringDamper("k", 100.0, 0.0), Mass("m", 1.0, force=force), Free("f")])
+    run = ctmm.simulate(chain, t0 + 0.1, 1e-3, method=method, t0=t0, compiled=False)
+    assert min(calls[1:]) >= t0 - 1e-9 and max(calls[1:]) <= t0 + 0.1 + 1e-9
+    exact = (1.0 - np.cos(10.0 * (run.time - t0))) / 100.0      # m x'' + k x = 1 from rest: (1 - cos w t) / k
+    assert np.max(np.abs(run["m.x"] - exact)) < 1e-7

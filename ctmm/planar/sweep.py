@@ -276,7 +276,7 @@ def accelerations(model: PlanarModel, q, qdot, t: float = 0.0, inputs=None) -> n
     >>> from ctmm.planar import PlanarModel, Pinned, RigidBody, accelerations
     >>> model = PlanarModel.chain("p", [Pinned("o"), RigidBody.uniform_link("l", mass=1.0,
     ...                                                                    length=1.0)])
-    >>> float(accelerations(model, [0.0], [0.0])[0])   # -3 g / (2 L) for a horizontal rod
+    >>> round(float(accelerations(model, [0.0], [0.0])[0]), 9)   # -3 g / (2 L), horizontal rod
     -14.715
     """
     q, qdot, t = _checked_state(model, q, qdot, t, inputs)
