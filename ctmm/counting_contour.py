@@ -238,6 +238,7 @@ def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: f
                                         f"at omega = {omega[big[-1]]:.3g} rad/s)")
         radius = float(max(2.0 * omega[big[-1]], 1e-2)) if big.size else 1e-2
         notes.append(f"height from |L| sampled on Re s = {sigma:.6g} up to {top:.0e} rad/s")
+        radius = max(radius, _open_chain_height(model, sigma, notes))
         return radius, seeds, ContourCertificate(sigma, radius, "sampled", math.nan, False, tuple(notes))
     proven = bound.radius(0.5 / growth)
     seeds = bound.poles
@@ -283,6 +284,33 @@ def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: f
             notes.append(f"im_max = {im_max:.6g} rad/s is below the proven height {proven:.6g} rad/s (no "
                          "open-loop pole beyond it, the sampled loop term stays below 1 in between)")
     return im_max, seeds, ContourCertificate(sigma, im_max, "user", proven, certified, tuple(notes))
+
+
+def _open_chain_height(model: LoopCharacteristic, sigma: float, notes: list[str]) -> float:
+    """Height [rad/s] that holds every root of the open chain ``Delta_0`` (this loop removed, the other
+    delayed loops closed) right of ``sigma``.  Those roots are poles of the loop term, so ``|L|``
+    sampled on the line does not see them; each other delayed loop's own contour height does."""
+    system = getattr(model, "system", None)
+    others = [lp for lp in getattr(system, "loops", ()) if lp is not model.loop]
+    if not any(lp.delay for lp in others):
+        return 0.0
+    open_chain = type(system)(system.plant, others)
+    height = 0.0
+    for lp in others:
+        if not lp.delay:
+            continue
+        other = LoopCharacteristic(open_chain, lp.name)
+        try:
+            radius, _, _ = contour_height(other, np.abs(other.gain * other.weights), sigma, other.delay, None)
+        except ModelError as exc:
+            notes.append(f"roots of the open chain (loop {model.loop.name!r} removed) not bounded: {exc}")
+            continue
+        height = max(height, radius)
+    if height:
+        notes.append(f"height raised to {height:.6g} rad/s to hold the roots of the open chain (loop "
+                     f"{model.loop.name!r} removed, delayed loops {', '.join(lp.name for lp in others if lp.delay)} "
+                     "closed), which |L| on the line does not see")
+    return height
 
 
 def _line_samples(length: float, tau_max: float, sigma: float) -> float:

@@ -1,0 +1,55 @@
+"""Counts of one loop when another loop is delayed too (its open chain has no realisation).
+
+The open chain of loop ``a`` (loop ``a`` removed, loop ``b`` closed with its delay) can be
+unstable.  Its roots are poles of loop ``a``'s term, so ``|L_a|`` sampled on the imaginary axis
+does not see them, and a contour height taken from it alone left them out (a count of 0 or 2
+where the system has 2 or 4 roots in the right half plane).  Independent reference: Chebyshev
+collocation of the two-delay equations assembled from M, C, K (``ctmm.reference.dde``), each
+root polished by Newton on ``det(s^2 M + s C + K + Ka e^{-s ta} e1 e2^T + Kb s e^{-s tb} e2 e1^T)``.
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import ctmm
+from ctmm.control import ControlledChain, Feedback
+from ctmm.elements import Fixed, Free, Mass, SpringDamper
+from ctmm.reference.dde import chebyshev_collocation_roots, newton_refine_root, second_order_system
+from ctmm.stability import unstable_root_count
+
+M = np.diag([1.0, 0.5])
+K = np.array([[3.0, -2.0], [-2.0, 2.0]])
+C = np.array([[0.1, -0.05], [-0.05, 0.05]])
+
+
+def two_loop_chain(ka, ta, kb, tb):
+    plant = ctmm.Chain("pair", [Fixed("w"), SpringDamper("k1", 1.0, 0.05), Mass("m1", 1.0),
+                                SpringDamper("k2", 2.0, 0.05), Mass("m2", 0.5), Free("e")])
+    return ControlledChain(plant, [Feedback("a", "m2.x", "m1", gain=ka, delay=ta),
+                                   Feedback("b", "m1.v", "m2", gain=kb, delay=tb)])
+
+
+def reference_count(ka, ta, kb, tb):
+    """Roots with Re s > 0 of M x'' + C x' + K x = -ka e1 x2(t - ta) - kb e2 x1'(t - tb)."""
+    G, H = np.zeros((2, 2)), np.zeros((2, 2))
+    G[0, 1], H[1, 0] = ka, kb
+    A0, delayed = second_order_system(M, C, K, [(G, np.zeros((2, 2)), ta), (np.zeros((2, 2)), H, tb)])
+    candidates = chebyshev_collocation_roots(A0, delayed, 80)
+    roots = {complex(np.round(newton_refine_root(A0, delayed, z), 8))
+             for z in candidates if z.real > -0.05 and abs(z) < 20}
+    return sum(1 for z in roots if z.real > 0)
+
+
+@pytest.mark.parametrize("ka, ta, kb, tb", [(0.47, 1.23, -0.77, 1.6), (-0.14, 2.65, 0.52, 0.4)])
+@pytest.mark.parametrize("loop", ["a", "b"])
+def test_count_holds_the_roots_of_the_delayed_open_chain(ka, ta, kb, tb, loop):
+    expected = reference_count(ka, ta, kb, tb)
+    assert expected > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        counts = unstable_root_count(two_loop_chain(ka, ta, kb, tb), loop=loop)
+    assert int(counts[0]) == expected
+    assert not counts.certificate.certified
