@@ -23,7 +23,7 @@ from .errors import ModelError, unknown_name
 from .roots import RootSet, SpectralAbscissa, rightmost_roots
 from .roots import spectral_abscissa as _roots_abscissa
 from .counting_contour import Contour, build_contour, contour_height, count
-from .parameter_crossings import bracket_solve, row_crossings
+from .parameter_crossings import bracket_solve, delay_intervals, row_crossings
 from .root_counts import RootCounts, unstable_root_count
 from .stability_chart import Boundary, StabilityChart, stability_chart
 from .state_space_characteristic import characteristic_of, is_loop_system, loop_characteristic
@@ -204,7 +204,7 @@ class DelayMargin:
     crossing_directions : tuple of int
         +1: a pair moves into the right half plane as the delay grows; -1: out of it.
     stable_intervals : tuple of (float, float)
-        Delay intervals of stability within [0, delay_max] [s].
+        Delay intervals of stability within [0, delay_max] [s] (direct counts between crossings if a crossing would take the count below 0; certificate.notes says so).
     delay_max : float
         Largest delay listed [s].
     certificate : ContourCertificate
@@ -356,26 +356,21 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
     directions = [directions[i] for i in order]
     counts, _ = count(contour, np.repeat(k, 2), np.array([0.0, tau_now]), np.repeat(w, 2, axis=0))
     n0, n_now = int(counts[0]), int(counts[1])
-    running, intervals, start = n0, [], 0.0 if n0 == 0 else None
-    for t_c, d in zip(taus, directions):
-        new = running + 2 * d
-        if running == 0 and new > 0 and start is not None:
-            intervals.append((start, t_c))
-            start = None
-        if new == 0 and running > 0:
-            start = t_c
-        running = new
-    if start is not None:
-        intervals.append((start, limit))
+    intervals, note = delay_intervals(taus, directions, n0, limit, lambda d: count(
+        contour, np.repeat(k, d.size), d, np.repeat(w, d.size, axis=0))[0])
+    certificate = contour.certificate if note is None else \
+        replace(contour.certificate, notes=contour.certificate.notes + (note,))
     stable, period, first = n_now == 0, 2 * math.pi / omega_c, int(np.argmin(tau0)) if tau0.size else None
     later = tau0 + period * np.maximum(0.0, np.floor((tau_now - tau0) / period) + 1.0)   # listed or beyond delay_max
     margin = (float(np.min(later)) - tau_now if later.size else math.inf) if stable else 0.0
+    if note is not None:         # the running count failed: the margin from the direct counts only
+        margin = min(margin, max([hi - tau_now for lo, hi in intervals if lo <= tau_now <= hi], default=0.0))
     return DelayMargin(critical_delay=float(tau0[first]) if first is not None else math.inf,
                        critical_frequency=float(omega_c[first]) if first is not None else math.nan, delay=tau_now,
                        margin=margin, stable=stable, unstable_roots_at_zero_delay=n0,
                        crossing_delays=tuple(taus), crossing_frequencies=tuple(omegas),
                        crossing_directions=tuple(directions), stable_intervals=tuple(intervals),
-                       delay_max=float(limit), certificate=contour.certificate)
+                       delay_max=float(limit), certificate=certificate)
 
 
 @dataclass(frozen=True)

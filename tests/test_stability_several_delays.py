@@ -1,4 +1,5 @@
-"""Counts of one loop when another loop is delayed too (its open chain has no realisation).
+"""Counts of one loop when another loop is delayed too (its open chain has no realisation), and
+the delay margin of a neutral loop whose crossings cannot be bookkept from the count at zero delay.
 
 The open chain of loop ``a`` (loop ``a`` removed, loop ``b`` closed with its delay) can be
 unstable.  Its roots are poles of loop ``a``'s term, so ``|L_a|`` sampled on the imaginary axis
@@ -18,7 +19,7 @@ import ctmm
 from ctmm.control import ControlledChain, Feedback
 from ctmm.elements import Fixed, Free, Mass, SpringDamper
 from ctmm.reference.dde import chebyshev_collocation_roots, newton_refine_root, second_order_system
-from ctmm.stability import unstable_root_count
+from ctmm.stability import delay_margin, unstable_root_count
 
 M = np.diag([1.0, 0.5])
 K = np.array([[3.0, -2.0], [-2.0, 2.0]])
@@ -53,3 +54,27 @@ def test_count_holds_the_roots_of_the_delayed_open_chain(ka, ta, kb, tb, loop):
         counts = unstable_root_count(two_loop_chain(ka, ta, kb, tb), loop=loop)
     assert int(counts[0]) == expected
     assert not counts.certificate.certified
+
+
+def test_neutral_loop_delay_margin_claims_no_interval_holding_unstable_roots():
+    """Acceleration feedback at the actuated mass, m s^2 + c s + k + g s^2 e^{-s tau} with g / m = 1.5 > 1:
+    a neutral equation whose root chain Re s -> ln(g / m) / tau > 0 is unstable for every delay.  With
+    im_max the crossings at 0.63 rad/s move pairs to the left from a count of 0, which the running count
+    turned into a stable interval (0, 39 s).  Reference: Newton on the closed form from the asymptotic
+    roots (ln(g / m) + 11 pi i) / tau, each verified with Re s > 0."""
+    m, c, k, g = 1.0, 0.1, 1.0, 1.5
+    plant = ctmm.Chain("o", [Fixed("w"), SpringDamper("k", k, c), Mass("m", m), Free("e")])
+    system = ControlledChain(plant, [Feedback("acc", "m.a", "m", gain=g, delay=0.01)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        margin = delay_margin(system, im_max=50.0)
+    assert not margin.certificate.certified
+    for tau in np.linspace(0.5, margin.delay_max, 12):
+        s = complex((np.log(g / m) + 11j * np.pi) / tau)
+        for _ in range(60):
+            e = np.exp(-s * tau)
+            s -= ((m * s * s + c * s + k) + g * s * s * e) / (2 * m * s + c + g * e * (2 * s - tau * s * s))
+        assert abs((m * s * s + c * s + k) + g * s * s * np.exp(-s * tau)) < 1e-9 * abs(s) ** 2
+        assert s.real > 0
+        assert not any(lo <= tau <= hi for lo, hi in margin.stable_intervals), (tau, s)
+        assert margin.delay + margin.margin < tau
