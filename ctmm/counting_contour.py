@@ -27,7 +27,7 @@ from .certification import (MAX_EIGEN_STATES, ContourCertificate, Realisation, S
 from .errors import ModelError, SingularSystemError
 from .sweeps import TINY, LoopCharacteristic
 
-__all__ = ["Contour", "build_contour", "contour_height", "count", "fixed_root_note", "listed_roots"]
+__all__ = ["Contour", "build_contour", "contour_height", "count", "fixed_root_note", "listed_roots", "neutral_factor"]
 
 _MAX_STEP = 0.4          # largest complex-log step of a component between samples
 _COUNT_STEP = 1.0        # largest phase step of Delta(s; p) between samples when counting
@@ -178,6 +178,17 @@ def _neutral_error(model: LoopCharacteristic, detail: str) -> ModelError:
         f"loop {model.loop.name!r} is neutral or improper: {detail}; such a loop can have infinitely "
         "many roots near a vertical line and no finite contour encloses them all. Pass im_max=<rad/s> "
         "to count roots in a bounded frequency range (the result is then reported as not certified)")
+
+
+def neutral_factor(model: LoopCharacteristic, weight_bound: np.ndarray) -> float:
+    """Factor on the loop's ``|k w_j|`` (``weight_bound``) from which the proven high-frequency limit of
+    the loop term reaches 1/2 (a neutral or improper loop, refused without ``im_max``); ``nan`` when the
+    model has no realisation to bound, ``inf`` when the loop term decays."""
+    try:
+        at_infinity = loop_bound(model, weight_bound).at_infinity
+    except ModelError:
+        return math.nan
+    return 0.5 / at_infinity if at_infinity > 0.0 else math.inf
 
 
 def listed_roots(roots: np.ndarray) -> str:

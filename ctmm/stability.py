@@ -22,7 +22,7 @@ from .certification import ContourCertificate
 from .errors import ModelError, unknown_name
 from .roots import RootSet, SpectralAbscissa, rightmost_roots
 from .roots import spectral_abscissa as _roots_abscissa
-from .counting_contour import Contour, build_contour, contour_height, count
+from .counting_contour import Contour, build_contour, contour_height, count, neutral_factor
 from .parameter_crossings import bracket_solve, delay_intervals, row_crossings
 from .root_counts import RootCounts, unstable_root_count
 from .stability_chart import Boundary, StabilityChart, stability_chart
@@ -456,8 +456,13 @@ def gain_margin(system: ControlledChain, loop: str | None = None, *, max_factor:
                          "is undefined; give the loop a non-zero gain")
     w = model.weights[None, :]
     tau = np.array([model.delay])
-    contour = build_contour(model, loop_weight_bound(np.array([abs(g) * max_factor]), w), model.delay,
-                       im_max=im_max)
+    try:
+        contour = build_contour(model, loop_weight_bound(np.array([abs(g) * max_factor]), w), model.delay, im_max=im_max)
+    except ModelError as exc:    # the box is the gain scaled by max_factor: name it and what is allowed
+        limit = neutral_factor(model, loop_weight_bound(np.array([abs(g)]), w))
+        limit = f"max_factor < {limit:.6g}" if 0.0 < limit < math.inf else "a smaller max_factor"
+        raise ModelError(f"{exc} [gain_margin scales the loop term by factors up to max_factor = {max_factor:g}; "
+                         f"{limit} keeps its high-frequency limit below 1/2]") from None
     sets0 = (np.array([0.0]), tau, w)
     sets1 = (np.array([g]), tau, w)
     crossings = row_crossings(contour, sets0, sets1, (-max_factor, max_factor), refine_all=True)

@@ -14,12 +14,14 @@ import warnings
 
 import numpy as np
 import pytest
+import scipy.optimize
 
 import ctmm
 from ctmm.control import ControlledChain, Feedback
 from ctmm.elements import Fixed, Free, Mass, SpringDamper
 from ctmm.reference.dde import chebyshev_collocation_roots, newton_refine_root, second_order_system
-from ctmm.stability import delay_margin, unstable_root_count
+from ctmm.errors import ModelError
+from ctmm.stability import delay_margin, gain_margin, unstable_root_count
 
 M = np.diag([1.0, 0.5])
 K = np.array([[3.0, -2.0], [-2.0, 2.0]])
@@ -78,3 +80,29 @@ def test_neutral_loop_delay_margin_claims_no_interval_holding_unstable_roots():
         assert s.real > 0
         assert not any(lo <= tau <= hi for lo, hi in margin.stable_intervals), (tau, s)
         assert margin.delay + margin.margin < tau
+
+
+def test_gain_margin_names_the_max_factor_that_makes_the_loop_neutral():
+    """u = -(0.3 a + x)(t - 0.2 s) on a unit mass: |L(inf)| = 0.3 k / m, so gain factors above
+    1 / (2 * 0.3) = 1.6667 make the loop term's limit reach 1/2.  The default max_factor = 100 was refused
+    with "its loop term tends to 30", without naming max_factor; a max_factor below the limit works and
+    gives the crossings of the closed form f(omega) = -(1 - omega^2 + 0.1 i omega) e^{i omega tau} / (1 - 0.3 omega^2)."""
+    tau = 0.2
+    plant = ctmm.Chain("o", [Fixed("w"), SpringDamper("k", 1.0, 0.1), Mass("m", 1.0), Free("e")])
+    system = ControlledChain(plant, [Feedback("acc", [("m.a", 0.3), ("m.x", 1.0)], "m", gain=1.0, delay=tau)])
+    with pytest.raises(ModelError, match=r"max_factor = 100; max_factor < 1\.66667 "):
+        gain_margin(system)
+    margin = gain_margin(system, max_factor=1.6)
+
+    def imaginary(omega):
+        return (-(1 - omega ** 2 + 0.1j * omega) * np.exp(1j * omega * tau) / (1 - 0.3 * omega ** 2)).imag
+
+    omega = np.linspace(1e-3, 400.0, 400_001)
+    exact = [-1.0]                                   # s = 0: f = -k / k_p
+    for i in np.flatnonzero(np.diff(np.sign(imaginary(omega))) != 0):
+        root = scipy.optimize.brentq(imaginary, omega[i], omega[i + 1], xtol=1e-15)
+        factor = (-(1 - root ** 2 + 0.1j * root) * np.exp(1j * root * tau) / (1 - 0.3 * root ** 2)).real
+        if abs(factor) <= 1.6:
+            exact.append(factor)
+    assert len(exact) == 2
+    assert margin.crossing_factors == pytest.approx(sorted(exact), rel=1e-9)
