@@ -27,7 +27,8 @@ from .certification import (MAX_EIGEN_STATES, ContourCertificate, Realisation, S
 from .errors import ModelError, SingularSystemError
 from .sweeps import TINY, LoopCharacteristic
 
-__all__ = ["Contour", "build_contour", "contour_height", "count", "fixed_root_note", "listed_roots", "neutral_factor"]
+__all__ = ["Contour", "build_contour", "contour_height", "count", "fixed_root_note", "listed_roots", "neutral_factor",
+           "proven_right"]
 
 _MAX_STEP = 0.4          # largest complex-log step of a component between samples
 _COUNT_STEP = 1.0        # largest phase step of Delta(s; p) between samples when counting
@@ -189,6 +190,15 @@ def neutral_factor(model: LoopCharacteristic, weight_bound: np.ndarray) -> float
     except ModelError:
         return math.nan
     return 0.5 / at_infinity if at_infinity > 0.0 else math.inf
+
+
+def proven_right(certificate: ContourCertificate | None, re_min: float, re_max: float | None) -> float | None:
+    """Right edge [1/s] of a root search right of ``re_min``: the user's ``re_max``, else the proven
+    height of the certificate (every root with ``Re s >= re_min`` has ``|s|`` below it), else None
+    (a heuristic edge, which can step over a root far to the right)."""
+    if re_max is not None or certificate is None or not re_min < certificate.bound < math.inf:
+        return re_max
+    return float(certificate.bound)
 
 
 def listed_roots(roots: np.ndarray) -> str:

@@ -22,7 +22,7 @@ from .certification import ContourCertificate
 from .errors import ModelError, unknown_name
 from .roots import RootSet, SpectralAbscissa, rightmost_roots
 from .roots import spectral_abscissa as _roots_abscissa
-from .counting_contour import Contour, build_contour, contour_height, count, neutral_factor
+from .counting_contour import Contour, build_contour, contour_height, count, neutral_factor, proven_right
 from .parameter_crossings import bracket_solve, delay_intervals, row_crossings
 from .root_counts import RootCounts, unstable_root_count
 from .stability_chart import Boundary, StabilityChart, stability_chart
@@ -56,7 +56,7 @@ def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: f
     im_max : float
         Half height of the region [rad/s].
     re_max : float, optional
-        Right edge [1/s]; default chosen by :func:`ctmm.roots.rightmost_roots`.
+        Right edge [1/s]; default: the certificate's proven height, else :func:`ctmm.roots.rightmost_roots`'s.
     seeds : sequence of complex or "spectral", optional
         Approximate roots [1/s] to start Newton from; ``"spectral"``: eigenvalues of a
         Chebyshev collocation of the delay equations of a finite-dimensional realisation
@@ -91,9 +91,10 @@ def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: f
             raise ModelError(f"seeds must be a sequence of complex numbers or 'spectral', got {seeds!r}")
         seeds = spectral_seeds(system)
         seeds = seeds[(seeds.real > re_min) & (np.abs(seeds.imag) <= im_max)]
-    found = rightmost_roots(characteristic_of(system), im_max=im_max, re_min=re_min, re_max=re_max,
-                            seeds=seeds, conjugate_symmetric=True, tol=tol)
-    return replace(found, certificate=region_certificate(system, re_min, im_max))
+    certificate = region_certificate(system, re_min, im_max)
+    found = rightmost_roots(characteristic_of(system), im_max=im_max, re_min=re_min, re_max=proven_right(
+        certificate, re_min, re_max), seeds=seeds, conjugate_symmetric=True, tol=tol)
+    return replace(found, certificate=certificate)
 
 
 def spectral_seeds(system: Any, *, nodes: int = 24) -> np.ndarray:
@@ -151,9 +152,9 @@ def spectral_abscissa(system: Any, *, re_min: float, im_max: float, re_max: floa
     """
     re_min = validation.finite("re_min", re_min)
     im_max = validation.positive("im_max", im_max)
-    found = _roots_abscissa(characteristic_of(system), im_max=im_max, re_min=re_min, re_max=re_max,
-                            seeds=seeds, conjugate_symmetric=True, tol=tol)
     certificate = region_certificate(system, re_min, im_max)
+    found = _roots_abscissa(characteristic_of(system), im_max=im_max, re_min=re_min, re_max=proven_right(
+        certificate, re_min, re_max), seeds=seeds, conjugate_symmetric=True, tol=tol)
     return replace(found, roots=replace(found.roots, certificate=certificate), certificate=certificate)
 
 
@@ -358,8 +359,7 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
     n0, n_now = int(counts[0]), int(counts[1])
     intervals, note = delay_intervals(taus, directions, n0, limit, lambda d: count(
         contour, np.repeat(k, d.size), d, np.repeat(w, d.size, axis=0))[0])
-    certificate = contour.certificate if note is None else \
-        replace(contour.certificate, notes=contour.certificate.notes + (note,))
+    certificate = contour.certificate if note is None else replace(contour.certificate, notes=contour.certificate.notes + (note,))
     stable, period, first = n_now == 0, 2 * math.pi / omega_c, int(np.argmin(tau0)) if tau0.size else None
     later = tau0 + period * np.maximum(0.0, np.floor((tau_now - tau0) / period) + 1.0)   # listed or beyond delay_max
     margin = (float(np.min(later)) - tau_now if later.size else math.inf) if stable else 0.0

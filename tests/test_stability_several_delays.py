@@ -1,5 +1,7 @@
-"""Counts of one loop when another loop is delayed too (its open chain has no realisation), and
-the delay margin of a neutral loop whose crossings cannot be bookkept from the count at zero delay.
+"""Defaults that left roots out: counts of one loop when another loop is delayed too (its open chain
+has no realisation), the delay margin of a neutral loop whose crossings cannot be bookkept from the
+count at zero delay, the gain margin's refusal of a loop max_factor makes neutral, and the right edge of
+a root search.
 
 The open chain of loop ``a`` (loop ``a`` removed, loop ``b`` closed with its delay) can be
 unstable.  Its roots are poles of loop ``a``'s term, so ``|L_a|`` sampled on the imaginary axis
@@ -106,3 +108,26 @@ def test_gain_margin_names_the_max_factor_that_makes_the_loop_neutral():
             exact.append(factor)
     assert len(exact) == 2
     assert margin.crossing_factors == pytest.approx(sorted(exact), rel=1e-9)
+
+
+def test_root_search_right_edge_holds_a_root_far_to_the_right():
+    """x' = 40 x + x(t - 0.5): the rightmost root is 40 + W_0(0.5 e^{-20}) / 0.5 (Lambert W, real).  The
+    heuristic right edge (no root in a strip next to re_min) stopped at Re s = 5 and reported the
+    system stable with no root; the proven height of the certificate bounds every root right of re_min."""
+    import control
+    from scipy.special import lambertw
+
+    from ctmm.linearized import DelayedLoop, LinearizedSystem
+    from ctmm.stability import characteristic_roots, spectral_abscissa
+
+    a, b, tau = 40.0, 1.0, 0.5
+    state_space = control.ss([[a]], [[1.0]], [[1.0]], [[0.0]], inputs=["L_u"], outputs=["L_y"], states=["x"])
+    system = LinearizedSystem(state_space, (DelayedLoop("L", -b, tau),), None)
+    exact = a + lambertw(b * tau * np.exp(-a * tau), 0).real / tau
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        abscissa = spectral_abscissa(system, re_min=-5.0, im_max=10.0)
+        roots = characteristic_roots(system, re_min=-5.0, im_max=10.0)
+    assert not abscissa.stable
+    assert abscissa.value == pytest.approx(exact, rel=1e-12)
+    assert roots.count == 1 and roots.roots[0] == pytest.approx(exact, rel=1e-12)
