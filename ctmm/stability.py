@@ -24,7 +24,7 @@ from .roots import RootSet, SpectralAbscissa, rightmost_roots
 from .roots import spectral_abscissa as _roots_abscissa
 from .counting_contour import Contour, build_contour, contour_height, count, neutral_factor, proven_right
 from .parameter_crossings import bracket_solve, delay_intervals, row_crossings
-from .root_counts import RootCounts, unstable_root_count
+from .root_counts import RootCounts, region_certificate, unstable_root_count
 from .stability_chart import Boundary, StabilityChart, stability_chart
 from .state_space_characteristic import characteristic_of, is_loop_system, loop_characteristic
 from .sweeps import LoopCharacteristic, as_controlled, find_loop, loop_weight_bound
@@ -156,18 +156,6 @@ def spectral_abscissa(system: Any, *, re_min: float, im_max: float, re_max: floa
     found = _roots_abscissa(characteristic_of(system), im_max=im_max, re_min=re_min, re_max=proven_right(
         certificate, re_min, re_max), seeds=seeds, conjugate_symmetric=True, tol=tol)
     return replace(found, roots=replace(found.roots, certificate=certificate), certificate=certificate)
-
-
-def region_certificate(system: Any, re_min: float, im_max: float) -> ContourCertificate | None:
-    """Whether ``Re s > re_min, |Im s| <= im_max`` holds every root of a controlled model with
-    one loop (:mod:`ctmm.certification`; warns when ``im_max`` is too small); None for other
-    systems."""
-    if not is_loop_system(system) or len(getattr(system, "delays", getattr(system, "loops", ()))) != 1:
-        return None
-    model = loop_characteristic(system)
-    k, tau, w = model.parameters(1)
-    _, _, certificate = contour_height(model, loop_weight_bound(k, w), re_min, float(tau[0]), im_max)
-    return certificate
 
 
 # --------------------------------------------------------------------------------------------

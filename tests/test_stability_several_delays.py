@@ -23,7 +23,7 @@ from ctmm.control import ControlledChain, Feedback
 from ctmm.elements import Fixed, Free, Mass, SpringDamper
 from ctmm.reference.dde import chebyshev_collocation_roots, newton_refine_root, second_order_system
 from ctmm.errors import ModelError
-from ctmm.stability import delay_margin, gain_margin, unstable_root_count
+from ctmm.stability import characteristic_roots, delay_margin, gain_margin, spectral_abscissa, unstable_root_count
 
 M = np.diag([1.0, 0.5])
 K = np.array([[3.0, -2.0], [-2.0, 2.0]])
@@ -118,7 +118,6 @@ def test_root_search_right_edge_holds_a_root_far_to_the_right():
     from scipy.special import lambertw
 
     from ctmm.linearized import DelayedLoop, LinearizedSystem
-    from ctmm.stability import characteristic_roots, spectral_abscissa
 
     a, b, tau = 40.0, 1.0, 0.5
     state_space = control.ss([[a]], [[1.0]], [[1.0]], [[0.0]], inputs=["L_u"], outputs=["L_y"], states=["x"])
@@ -131,3 +130,18 @@ def test_root_search_right_edge_holds_a_root_far_to_the_right():
     assert not abscissa.stable
     assert abscissa.value == pytest.approx(exact, rel=1e-12)
     assert roots.count == 1 and roots.roots[0] == pytest.approx(exact, rel=1e-12)
+
+
+def test_root_search_right_edge_with_a_delay_free_loop_beside_the_delayed_one():
+    """u = -1601 x (no delay) and u = -x(t - 0.5) on a unit mass with k = 1: s^2 - 1600 + e^{-s/2} = 0 has a
+    real root near 40 (brentq on the closed form).  Several loops got no certificate and the heuristic edge
+    at Re s = 5: reported stable with no root."""
+    plant = ctmm.Chain("o", [Fixed("w"), SpringDamper("k", 1.0, 0.0), Mass("m", 1.0), Free("e")])
+    system = ControlledChain(plant, [Feedback("q", "m.x", "m", gain=-1601.0, delay=0.0),
+                                     Feedback("p", "m.x", "m", gain=1.0, delay=0.5)])
+    exact = scipy.optimize.brentq(lambda s: s * s - 1600.0 + np.exp(-0.5 * s), 39.0, 41.0, xtol=1e-14)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        abscissa = spectral_abscissa(system, re_min=-5.0, im_max=10.0)
+    assert not abscissa.stable
+    assert abscissa.value == pytest.approx(exact, rel=1e-10)
