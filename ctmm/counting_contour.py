@@ -27,7 +27,8 @@ from .certification import (MAX_EIGEN_STATES, ContourCertificate, Realisation, S
 from .errors import ModelError, SingularSystemError
 from .sweeps import TINY, LoopCharacteristic
 
-__all__ = ["Contour", "build_contour", "contour_height", "count", "fixed_root_note", "listed_roots"]
+__all__ = ["Contour", "build_contour", "contour_height", "count", "fixed_root_note", "listed_roots", "neutral_factor",
+           "proven_right"]
 
 _MAX_STEP = 0.4          # largest complex-log step of a component between samples
 _COUNT_STEP = 1.0        # largest phase step of Delta(s; p) between samples when counting
@@ -180,6 +181,26 @@ def _neutral_error(model: LoopCharacteristic, detail: str) -> ModelError:
         "to count roots in a bounded frequency range (the result is then reported as not certified)")
 
 
+def neutral_factor(model: LoopCharacteristic, weight_bound: np.ndarray) -> float:
+    """Factor on the loop's ``|k w_j|`` (``weight_bound``) from which the proven high-frequency limit of
+    the loop term reaches 1/2 (a neutral or improper loop, refused without ``im_max``); ``nan`` when the
+    model has no realisation to bound, ``inf`` when the loop term decays."""
+    try:
+        at_infinity = loop_bound(model, weight_bound).at_infinity
+    except ModelError:
+        return math.nan
+    return 0.5 / at_infinity if at_infinity > 0.0 else math.inf
+
+
+def proven_right(certificate: ContourCertificate | None, re_min: float, re_max: float | None) -> float | None:
+    """Right edge [1/s] of a root search right of ``re_min``: the user's ``re_max``, else the proven
+    height of the certificate (every root with ``Re s >= re_min`` has ``|s|`` below it), else None
+    (a heuristic edge, which can step over a root far to the right)."""
+    if re_max is not None or certificate is None or not re_min < certificate.bound < math.inf:
+        return re_max
+    return float(certificate.bound)
+
+
 def listed_roots(roots: np.ndarray) -> str:
     """``"0, ±5.81615j, -1±2j"``: roots with ``Im >= 0`` and their conjugates, 6 digits."""
     out = []
@@ -238,6 +259,7 @@ def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: f
                                         f"at omega = {omega[big[-1]]:.3g} rad/s)")
         radius = float(max(2.0 * omega[big[-1]], 1e-2)) if big.size else 1e-2
         notes.append(f"height from |L| sampled on Re s = {sigma:.6g} up to {top:.0e} rad/s")
+        radius = max(radius, _open_chain_height(model, sigma, notes))
         return radius, seeds, ContourCertificate(sigma, radius, "sampled", math.nan, False, tuple(notes))
     proven = bound.radius(0.5 / growth)
     seeds = bound.poles
@@ -283,6 +305,33 @@ def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: f
             notes.append(f"im_max = {im_max:.6g} rad/s is below the proven height {proven:.6g} rad/s (no "
                          "open-loop pole beyond it, the sampled loop term stays below 1 in between)")
     return im_max, seeds, ContourCertificate(sigma, im_max, "user", proven, certified, tuple(notes))
+
+
+def _open_chain_height(model: LoopCharacteristic, sigma: float, notes: list[str]) -> float:
+    """Height [rad/s] that holds every root of the open chain ``Delta_0`` (this loop removed, the other
+    delayed loops closed) right of ``sigma``.  Those roots are poles of the loop term, so ``|L|``
+    sampled on the line does not see them; each other delayed loop's own contour height does."""
+    system = getattr(model, "system", None)
+    others = [lp for lp in getattr(system, "loops", ()) if lp is not model.loop]
+    if not any(lp.delay for lp in others):
+        return 0.0
+    open_chain = type(system)(system.plant, others)
+    height = 0.0
+    for lp in others:
+        if not lp.delay:
+            continue
+        other = LoopCharacteristic(open_chain, lp.name)
+        try:
+            radius, _, _ = contour_height(other, np.abs(other.gain * other.weights), sigma, other.delay, None)
+        except ModelError as exc:
+            notes.append(f"roots of the open chain (loop {model.loop.name!r} removed) not bounded: {exc}")
+            continue
+        height = max(height, radius)
+    if height:
+        notes.append(f"height raised to {height:.6g} rad/s to hold the roots of the open chain (loop "
+                     f"{model.loop.name!r} removed, delayed loops {', '.join(lp.name for lp in others if lp.delay)} "
+                     "closed), which |L| on the line does not see")
+    return height
 
 
 def _line_samples(length: float, tau_max: float, sigma: float) -> float:

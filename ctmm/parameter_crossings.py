@@ -9,6 +9,7 @@ parameter) and by the gain margin.  Methods: ``docs/stability.md`` section 5.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -16,7 +17,7 @@ from .counting_contour import Contour
 from .roots1d import refine_sign_change
 from .sweeps import TINY, LoopCharacteristic
 
-__all__ = ["Crossings", "row_crossings", "bracket_solve", "combine_pointwise"]
+__all__ = ["Crossings", "row_crossings", "bracket_solve", "combine_pointwise", "delay_intervals"]
 
 
 # --------------------------------------------------------------------------------------------
@@ -220,3 +221,43 @@ def bracket_solve(evaluate, a, b, fa, fb, pa, pb, *, stop=None, rtol: float = 4e
     refine_sign_change(function, lo, up, fa, fb, rtol, tracked=(pa, pb),
                        stop=None if stop is None else narrow_and_decided)
     return last, pa, pb
+
+
+# --------------------------------------------------------------------------------------------
+# stable delay intervals from the crossings along the delay
+# --------------------------------------------------------------------------------------------
+def delay_intervals(taus: list[float], directions: list[int], n0: int, limit: float,
+                    count_at: Callable[[np.ndarray], np.ndarray]) -> tuple[list[tuple[float, float]], str | None]:
+    """Stable delay intervals in ``[0, limit]`` [s] from the count ``n0`` at zero delay and the
+    crossings (delays ``taus`` [s], ascending, and ``directions`` +1 / -1, one pair each).
+
+    A crossing that would take the count below zero proves that roots enter or leave the counted
+    region through its far edges (a neutral loop, or an ``im_max`` below the proven height): the
+    running count is then meaningless, and each interval between crossings is counted directly by
+    ``count_at(delays) -> counts`` at its midpoint instead.  Returns the intervals and, in that
+    case, a note for the certificate (else ``None``)."""
+    running, intervals, start, consistent = n0, [], 0.0 if n0 == 0 else None, True
+    for t_c, d in zip(taus, directions):
+        new = running + 2 * d
+        consistent = consistent and new >= 0
+        if running == 0 and new > 0 and start is not None:
+            intervals.append((start, t_c))
+            start = None
+        if new == 0 and running > 0:
+            start = t_c
+        running = new
+    if start is not None:
+        intervals.append((start, limit))
+    if consistent or n0 < 0:
+        return intervals, None
+    edges = np.unique(np.clip(np.concatenate([[0.0], taus, [limit]]), 0.0, limit))
+    counts = count_at(0.5 * (edges[:-1] + edges[1:]))
+    intervals = []
+    for lo, hi, n in zip(edges[:-1], edges[1:], counts):
+        if n == 0:
+            intervals.append((intervals.pop()[0], hi) if intervals and intervals[-1][1] == lo else (lo, hi))
+    note = (f"a crossing at delay {taus[int(np.argmax(n0 + 2 * np.cumsum(directions) < 0))]:.6g} s moves roots out of "
+            f"Re s > 0 that the counted region does not hold (roots enter through its far edges: a neutral loop or "
+            "an im_max below the proven height); the stable intervals are direct counts at the midpoints between "
+            "crossings, not the running count")
+    return intervals, note

@@ -14,11 +14,12 @@ import numpy as np
 from . import validation
 from .certification import ContourCertificate
 from .control.loops import ControlledChain
-from .counting_contour import build_contour, count
-from .state_space_characteristic import loop_characteristic
+from .counting_contour import build_contour, contour_height, count
+from .errors import ModelError
+from .state_space_characteristic import is_loop_system, loop_characteristic
 from .sweeps import check_parameters, loop_weight_bound, n_sets
 
-__all__ = ["RootCounts", "unstable_root_count"]
+__all__ = ["RootCounts", "unstable_root_count", "region_certificate"]
 
 
 def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gain: Any = None,
@@ -87,3 +88,19 @@ class RootCounts(np.ndarray):
 
     def __array_finalize__(self, obj: Any) -> None:
         self.certificate = getattr(obj, "certificate", None)
+
+
+def region_certificate(system: Any, re_min: float, im_max: float) -> ContourCertificate | None:
+    """Whether ``Re s > re_min, |Im s| <= im_max`` holds every root of a model with one (delayed) loop
+    (:mod:`ctmm.certification`; warns when ``im_max`` is too small); None for other systems."""
+    loops = getattr(system, "delays", getattr(system, "loops", ()))
+    delayed = [lp.name for lp in loops if lp.delay]
+    if not is_loop_system(system) or (len(loops) != 1 and len(delayed) != 1):
+        return None
+    try:
+        model = loop_characteristic(system, delayed[0] if len(loops) > 1 else None)
+    except ModelError:            # refused (a delay-free LTI loop beside it in a ControlledModel): no certificate
+        return None
+    k, tau, w = model.parameters(1)
+    _, _, certificate = contour_height(model, loop_weight_bound(k, w), re_min, float(tau[0]), im_max)
+    return certificate

@@ -22,9 +22,9 @@ from .certification import ContourCertificate
 from .errors import ModelError, unknown_name
 from .roots import RootSet, SpectralAbscissa, rightmost_roots
 from .roots import spectral_abscissa as _roots_abscissa
-from .counting_contour import Contour, build_contour, contour_height, count
-from .parameter_crossings import bracket_solve, row_crossings
-from .root_counts import RootCounts, unstable_root_count
+from .counting_contour import Contour, build_contour, contour_height, count, neutral_factor, proven_right
+from .parameter_crossings import bracket_solve, delay_intervals, row_crossings
+from .root_counts import RootCounts, region_certificate, unstable_root_count
 from .stability_chart import Boundary, StabilityChart, stability_chart
 from .state_space_characteristic import characteristic_of, is_loop_system, loop_characteristic
 from .sweeps import LoopCharacteristic, as_controlled, find_loop, loop_weight_bound
@@ -56,7 +56,7 @@ def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: f
     im_max : float
         Half height of the region [rad/s].
     re_max : float, optional
-        Right edge [1/s]; default chosen by :func:`ctmm.roots.rightmost_roots`.
+        Right edge [1/s]; default: the certificate's proven height, else :func:`ctmm.roots.rightmost_roots`'s.
     seeds : sequence of complex or "spectral", optional
         Approximate roots [1/s] to start Newton from; ``"spectral"``: eigenvalues of a
         Chebyshev collocation of the delay equations of a finite-dimensional realisation
@@ -91,9 +91,10 @@ def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: f
             raise ModelError(f"seeds must be a sequence of complex numbers or 'spectral', got {seeds!r}")
         seeds = spectral_seeds(system)
         seeds = seeds[(seeds.real > re_min) & (np.abs(seeds.imag) <= im_max)]
-    found = rightmost_roots(characteristic_of(system), im_max=im_max, re_min=re_min, re_max=re_max,
-                            seeds=seeds, conjugate_symmetric=True, tol=tol)
-    return replace(found, certificate=region_certificate(system, re_min, im_max))
+    certificate = region_certificate(system, re_min, im_max)
+    found = rightmost_roots(characteristic_of(system), im_max=im_max, re_min=re_min, re_max=proven_right(
+        certificate, re_min, re_max), seeds=seeds, conjugate_symmetric=True, tol=tol)
+    return replace(found, certificate=certificate)
 
 
 def spectral_seeds(system: Any, *, nodes: int = 24) -> np.ndarray:
@@ -151,22 +152,10 @@ def spectral_abscissa(system: Any, *, re_min: float, im_max: float, re_max: floa
     """
     re_min = validation.finite("re_min", re_min)
     im_max = validation.positive("im_max", im_max)
-    found = _roots_abscissa(characteristic_of(system), im_max=im_max, re_min=re_min, re_max=re_max,
-                            seeds=seeds, conjugate_symmetric=True, tol=tol)
     certificate = region_certificate(system, re_min, im_max)
+    found = _roots_abscissa(characteristic_of(system), im_max=im_max, re_min=re_min, re_max=proven_right(
+        certificate, re_min, re_max), seeds=seeds, conjugate_symmetric=True, tol=tol)
     return replace(found, roots=replace(found.roots, certificate=certificate), certificate=certificate)
-
-
-def region_certificate(system: Any, re_min: float, im_max: float) -> ContourCertificate | None:
-    """Whether ``Re s > re_min, |Im s| <= im_max`` holds every root of a controlled model with
-    one loop (:mod:`ctmm.certification`; warns when ``im_max`` is too small); None for other
-    systems."""
-    if not is_loop_system(system) or len(getattr(system, "delays", getattr(system, "loops", ()))) != 1:
-        return None
-    model = loop_characteristic(system)
-    k, tau, w = model.parameters(1)
-    _, _, certificate = contour_height(model, loop_weight_bound(k, w), re_min, float(tau[0]), im_max)
-    return certificate
 
 
 # --------------------------------------------------------------------------------------------
@@ -204,7 +193,7 @@ class DelayMargin:
     crossing_directions : tuple of int
         +1: a pair moves into the right half plane as the delay grows; -1: out of it.
     stable_intervals : tuple of (float, float)
-        Delay intervals of stability within [0, delay_max] [s].
+        Delay intervals of stability within [0, delay_max] [s] (direct counts between crossings if a crossing would take the count below 0; certificate.notes says so).
     delay_max : float
         Largest delay listed [s].
     certificate : ContourCertificate
@@ -356,26 +345,20 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
     directions = [directions[i] for i in order]
     counts, _ = count(contour, np.repeat(k, 2), np.array([0.0, tau_now]), np.repeat(w, 2, axis=0))
     n0, n_now = int(counts[0]), int(counts[1])
-    running, intervals, start = n0, [], 0.0 if n0 == 0 else None
-    for t_c, d in zip(taus, directions):
-        new = running + 2 * d
-        if running == 0 and new > 0 and start is not None:
-            intervals.append((start, t_c))
-            start = None
-        if new == 0 and running > 0:
-            start = t_c
-        running = new
-    if start is not None:
-        intervals.append((start, limit))
+    intervals, note = delay_intervals(taus, directions, n0, limit, lambda d: count(
+        contour, np.repeat(k, d.size), d, np.repeat(w, d.size, axis=0))[0])
+    certificate = contour.certificate if note is None else replace(contour.certificate, notes=contour.certificate.notes + (note,))
     stable, period, first = n_now == 0, 2 * math.pi / omega_c, int(np.argmin(tau0)) if tau0.size else None
     later = tau0 + period * np.maximum(0.0, np.floor((tau_now - tau0) / period) + 1.0)   # listed or beyond delay_max
     margin = (float(np.min(later)) - tau_now if later.size else math.inf) if stable else 0.0
+    if note is not None:         # the running count failed: the margin from the direct counts only
+        margin = min(margin, max([hi - tau_now for lo, hi in intervals if lo <= tau_now <= hi], default=0.0))
     return DelayMargin(critical_delay=float(tau0[first]) if first is not None else math.inf,
                        critical_frequency=float(omega_c[first]) if first is not None else math.nan, delay=tau_now,
                        margin=margin, stable=stable, unstable_roots_at_zero_delay=n0,
                        crossing_delays=tuple(taus), crossing_frequencies=tuple(omegas),
                        crossing_directions=tuple(directions), stable_intervals=tuple(intervals),
-                       delay_max=float(limit), certificate=contour.certificate)
+                       delay_max=float(limit), certificate=certificate)
 
 
 @dataclass(frozen=True)
@@ -461,8 +444,13 @@ def gain_margin(system: ControlledChain, loop: str | None = None, *, max_factor:
                          "is undefined; give the loop a non-zero gain")
     w = model.weights[None, :]
     tau = np.array([model.delay])
-    contour = build_contour(model, loop_weight_bound(np.array([abs(g) * max_factor]), w), model.delay,
-                       im_max=im_max)
+    try:
+        contour = build_contour(model, loop_weight_bound(np.array([abs(g) * max_factor]), w), model.delay, im_max=im_max)
+    except ModelError as exc:    # the box is the gain scaled by max_factor: name it and what is allowed
+        limit = neutral_factor(model, loop_weight_bound(np.array([abs(g)]), w))
+        limit = f"max_factor < {limit:.6g}" if 0.0 < limit < math.inf else "a smaller max_factor"
+        raise ModelError(f"{exc} [gain_margin scales the loop term by factors up to max_factor = {max_factor:g}; "
+                         f"{limit} keeps its high-frequency limit below 1/2]") from None
     sets0 = (np.array([0.0]), tau, w)
     sets1 = (np.array([g]), tau, w)
     crossings = row_crossings(contour, sets0, sets1, (-max_factor, max_factor), refine_all=True)
