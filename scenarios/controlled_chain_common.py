@@ -12,7 +12,7 @@ quantity               value                    note
 =====================  =======================  ===========================================
 m2, m4, m6             1.0 kg each
 K1, K3, K5             10.0 N/m each            first natural frequency 1.41 rad/s
-C1, C3, C5             1.0 N s/m each           modal damping 4-16 %
+C1, C3, C5             1.0 N s/m each           C = K / 10: modal damping 7.0-28.5 %
 Ka                     0 and 5.0 N/m            the seed's gain (Figs. 9.29, 9.39)
 loop (Figs. 9.27-9.29) u = -Ka x6 on m2         non-collocated, sensor downstream
 loop (Figs. 9.30-9.31) u = -Ka x6 across K3,C3  +u on m4, -u on m2

@@ -1,8 +1,9 @@
 """Nonlinear hinge springs in the style of seed 002 Fig. 7.12: laws, backbone curve and a damped response.
 
 Own parameters (the seed's were lost): a uniform link (1 kg, 1 m; ``J = 1/3 kg m^2`` about the hinge) on
-a ground hinge without gravity, with the rotary spring ``M = K1 theta + K2 theta^3`` (seed 002 §7.6.1:
-``K1 = 10 N m/rad``; hardening ``K2 = +60``, softening ``K2 = -3 N m/rad^3``), a clearance spring
+a ground hinge without gravity, with the rotary spring ``M = K1 theta + K2 theta^3`` (seed 002 §7.6.1 names
+the two coefficients of its nonlinear rotary spring, eq. (7.202), whose formula was lost: the cubic is our
+reading; ours too: ``K1 = 10 N m/rad``, hardening ``K2 = +60``, softening ``K2 = -3 N m/rad^3``), a clearance spring
 (gap 0.05 rad, 20 N m/rad, stop at 0.4 rad adding 200 N m/rad) and a quadratic damper.
 
 * Backbone: the period of free undamped oscillations against the amplitude, ctmm (the TMM sweep with the

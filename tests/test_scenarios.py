@@ -60,3 +60,46 @@ def test_cli_list_and_run(tmp_path, capsys):
     assert line.startswith("table7_1 | linear MSTMM error vs exact: error ")
     assert "m (bound 1e-09)" in line
     assert main(["run", "nope", "--output", str(tmp_path)]) == 2
+
+
+def test_controlled_chain_parameter_notes_match_the_chain():
+    """The numbers in the controlled-chain parameter table (scenarios/controlled_chain_common.py) are those of
+    the chain ground -[K,C]- m2 -[K,C]- m4 -[K,C]- m6 -free, computed here from its global M, C, K: first natural
+    frequency, modal damping range (C = K / 10 gives zeta_k = omega_k / 20) and delay margin of u = -Ka x6(t - tau)
+    on m2 (the crossover of |Ka G_62(i w)| = 1 with the smallest positive delay)."""
+    import re
+
+    import numpy as np
+
+    from scenarios import controlled_chain_common as common      # the repository folder (ctmm.scenarios installed)
+
+    m, k, c = common.MASS, common.STIFFNESS, common.DAMPING
+    shape = np.array([[2.0, -1.0, 0.0], [-1.0, 2.0, -1.0], [0.0, -1.0, 1.0]])
+    mass, stiffness, damping = m * np.eye(3), k * shape, c * shape
+    state = np.block([[np.zeros((3, 3)), np.eye(3)],
+                      [-np.linalg.solve(mass, stiffness), -np.linalg.solve(mass, damping)]])
+    roots = np.linalg.eigvals(state)
+    roots = roots[roots.imag > 0]
+    omega_n, zeta = np.abs(roots), -roots.real / np.abs(roots)
+    doc = common.__doc__
+    first = float(re.search(r"first natural frequency ([\d.]+) rad/s", doc).group(1))
+    assert first == pytest.approx(omega_n.min(), abs=0.005)
+    low, high = map(float, re.search(r"modal damping ([\d.]+)-([\d.]+) %", doc).groups())
+    assert (low, high) == pytest.approx((100 * zeta.min(), 100 * zeta.max()), abs=0.05)
+
+    def loop(w):
+        return common.KA * np.linalg.solve(-w * w * mass + 1j * w * damping + stiffness, np.eye(3))[2, 0]
+
+    grid = np.linspace(0.05, 20.0, 40001)
+    magnitude = np.abs([loop(w) for w in grid]) - 1.0
+    delays = []
+    for i in np.nonzero(np.diff(np.sign(magnitude)))[0]:
+        a, b = grid[i], grid[i + 1]
+        for _ in range(60):                                  # bisection on |L(i w)| = 1
+            mid = 0.5 * (a + b)
+            a, b = (mid, b) if np.sign(abs(loop(mid)) - 1.0) == np.sign(magnitude[i]) else (a, mid)
+        w = 0.5 * (a + b)
+        delays.append(((np.angle(loop(w)) + np.pi) % (2 * np.pi)) / w)
+    margin = float(re.search(r"half the delay margin \(([\d.]+) s\)", doc).group(1))
+    assert margin == pytest.approx(min(delays), abs=5e-4)
+    assert common.DELAY == pytest.approx(margin / 2, abs=5e-3)
