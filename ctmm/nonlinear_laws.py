@@ -426,6 +426,7 @@ class CallableLaw(Law):
         self._expression = str(f)        # the law's content: part of its repr (generated-kernel structure keys)
         self._casadi = casadi.Function(self.name.replace(" ", "_") or "law", [d, v],
                                        [f, casadi.jacobian(f, d), casadi.jacobian(f, v)])
+        self._rate_dependent = bool(casadi.depends_on(f, v))   # structural: exact for the casadi form
         self.stiffness_function = lambda a, b: self._numeric(1, a, b)
         self.damping_function = lambda a, b: self._numeric(2, a, b)
         self.expressible = True
@@ -477,6 +478,11 @@ class CallableLaw(Law):
             return stiffness, damping
         return (self._vectorised(self.stiffness_function, delta, rate),
                 self._vectorised(self.damping_function, delta, rate))
+
+    @property
+    def velocity_dependent(self) -> bool:
+        """Whether the law depends on the rate: from the casadi form's structure; with given derivatives, assumed."""
+        return self.__dict__.get("_rate_dependent", True)
 
     def _potential(self, delta):
         if self.potential_function is None:

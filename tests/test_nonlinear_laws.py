@@ -419,6 +419,20 @@ def test_radial_spring_energy_and_tangent():
         NonlinearHinge("h", parent="g", child="l", radial_law=PowerDamper(1.0, 2.0))
 
 
+def test_a_rate_independent_user_law_is_accepted_as_a_radial_spring():
+    """A casadi-form CallableLaw whose force has no rate term was refused as "must be a spring (no rate
+    dependence)".  Hand check: a link hanging free on its pin sinks by r with f(r) = m g (the root below)."""
+    force = CallableLaw(lambda d, v: 2000.0 * d + 5e6 * d ** 3)
+    model = PlanarModel("pin", [Fixed("g"), RigidBody.uniform_link("l", mass=1.0, length=1.0),
+                                NonlinearHinge("h", parent="g", child="l", radial_law=force)], gravity=(0.0, -9.81))
+    sag = scipy.optimize.brentq(lambda r: 2000.0 * r + 5e6 * r ** 3 - 9.81, 0.0, 1.0)
+    from ctmm.planar.equilibrium import static_equilibrium
+    q = static_equilibrium(model, [0.0, -0.001, -1.5])
+    np.testing.assert_allclose(q, [0.0, -sag, -0.5 * math.pi], rtol=0, atol=1e-12)
+    with pytest.raises(ModelError, match="radial_law must be a spring"):
+        NonlinearHinge("h", radial_law=CallableLaw(lambda d, v: 2000.0 * d + 3.0 * v))
+
+
 def test_generated_kernel_of_translational_and_radial_springs_equals_the_numpy_rk4():
     """Was refused by name; now compiled from the same terms (tests/test_compiled_bushings.py)."""
     for model in (bushing_link(RADIAL), bushing_link(ClearanceSpring(3000.0, clearance=0.002))):

@@ -448,8 +448,10 @@ class NonlinearHinge(Hinge):
         if self.moment_law is None and self.radial_law is None:
             raise ModelError(f"{self.name}: give a moment_law, a radial_law or both (got neither)")
         if self.radial_law is not None and self.radial_law.velocity_dependent:
+            hint = (" (a CallableLaw counts as rate-dependent when its casadi force contains the rate, or when its "
+                    "derivatives are given)") if "CallableLaw" in repr(self.radial_law) else ""
             raise ModelError(f"{self.name}: radial_law must be a spring (no rate dependence), got "
-                             f"{self.radial_law!r}")
+                             f"{self.radial_law!r}{hint}")
         object.__setattr__(self, "rest_angle", validation.finite(f"{self.name}: rest_angle", self.rest_angle))
 
     def moment(self, dtheta, dtheta_dot):
