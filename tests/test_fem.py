@@ -34,6 +34,15 @@ def test_cantilever_frequencies_converge_to_the_analytic_ones_at_fourth_order():
     assert np.all(rates > 3.8)                                  # consistent Hermite mass: O(h^4)
 
 
+def test_clamped_frequencies_of_a_beam_compressed_above_euler_buckling_are_refused():
+    """Above the Euler load ``pi^2 EI / 4 L^2`` of the fixed-free beam, K + K_G has a negative eigenvalue: no
+    natural frequency exists (it used to be reported as 0 rad/s); below it the frequencies stay."""
+    critical = np.pi ** 2 * EI / (4 * LENGTH ** 2)
+    assert straight_beam(8, axial_force=-0.5 * critical).natural_frequencies(clamped=["n0"])[0] > 0.0
+    with pytest.raises(ModelError, match=r"beam: statically unstable.*negative stiffness.*axial_force"):
+        straight_beam(8, axial_force=-2.0 * critical).natural_frequencies(clamped=["n0"])
+
+
 def test_axial_frequencies_and_euler_buckling_load():
     fe = straight_beam(20)
     axial = np.pi / 2 * np.sqrt(EA / RHO_A) / LENGTH             # fixed-free rod, first mode
