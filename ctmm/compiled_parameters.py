@@ -64,6 +64,11 @@ def compile_refusal(model: Any, *, driven_signals: bool = False) -> str:
         return (f"model {model.name!r} has nonlinear hinge laws without a casadi form: {', '.join(laws)} (user code "
                 "with given derivatives; give CallableLaw a casadi-compatible force and no derivatives, or use the "
                 "numpy path, compiled=False)")
+    forces = [repr(model.body_names[j]) for j, beam in model.beams.items()
+              if getattr(beam, "nonlinear_force", None) is not None]
+    if forces:
+        return (f"model {model.name!r} has subsystems with a nonlinear_force: {', '.join(forces)} (Python code "
+                "f(u, u_dot, t), which generated kernels cannot evaluate; use the numpy path, compiled=False)")
     for j, beam in model.beams.items():
         data = beam.data
         if not data.constant_distributed or data.forces or data.laws:

@@ -51,6 +51,10 @@ def spatial_compile_refusal(model: Any, *, time_signals: bool = False) -> str:
     if laws:
         return (f"model {model.name!r} has nonlinear joint laws without a casadi form: {', '.join(laws)}; give "
                 "CallableLaw a casadi-compatible force and no derivatives, or use ctmm.simulate without compiled=True")
+    forces = [repr(body.name) for body in model.bodies if getattr(body, "nonlinear_force", None) is not None]
+    if forces:
+        return (f"model {model.name!r} has subsystems with a nonlinear_force: {', '.join(forces)} (Python code "
+                "f(u, u_dot, t), which generated kernels cannot evaluate; use ctmm.simulate without compiled=True)")
     allowed = (lambda f: signal_parameters(f) is not None) if time_signals else (lambda f: isinstance(f, Constant))
     reasons = [f"driven joint {joint.name!r} ({_offending(joint, ('position', 'rate', 'acceleration'), allowed)})"
                for joint in model.joints if joint.driven and _offending(joint, ('position', 'rate', 'acceleration'),

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -32,6 +33,37 @@ def test_cantilever_frequencies_converge_to_the_analytic_ones_at_fourth_order():
     assert np.all(errors[-1] < [3e-7, 1e-5, 1e-4])   # 1.3e-7, 5.1e-6, 4.0e-5
     rates = np.log2(errors[:-1, 0] / errors[1:, 0])
     assert np.all(rates > 3.8)                                  # consistent Hermite mass: O(h^4)
+
+
+def test_clamped_frequencies_of_a_beam_compressed_above_euler_buckling_are_refused():
+    """Above the Euler load ``pi^2 EI / 4 L^2`` of the fixed-free beam, K + K_G has a negative eigenvalue: no
+    natural frequency exists (it used to be reported as 0 rad/s); below it the frequencies stay."""
+    critical = np.pi ** 2 * EI / (4 * LENGTH ** 2)
+    assert straight_beam(8, axial_force=-0.5 * critical).natural_frequencies(clamped=["n0"])[0] > 0.0
+    with pytest.raises(ModelError, match=r"beam: statically unstable.*negative stiffness.*axial_force"):
+        straight_beam(8, axial_force=-2.0 * critical).natural_frequencies(clamped=["n0"])
+
+
+def test_model_verbs_on_a_buckled_subsystem_refuse_by_name_instead_of_a_singular_inertia():
+    """Without an operating point, the static-equilibrium search descends from the unstable straight beam and runs
+    away (the linear subsystem has no stable equilibrium): a ModelError naming the unstable direction's omega^2
+    (= the lowest eigenvalue of eigh(K + K_G, M) clamped at n0), not the sweep's 'singular inertia'."""
+    import scipy.linalg
+
+    import ctmm
+    from ctmm.planar import Fixed
+
+    critical = np.pi ** 2 * EI / (4 * LENGTH ** 2)
+    fe = straight_beam(8, axial_force=-2.0 * critical)
+    model = PlanarModel.chain("buckled", [Fixed("ground"), fe.subsystem("beam", boundary=("n0", "n8"))],
+                              gravity=(0.0, 0.0))
+    free = [i for i in range(fe.n_dofs) if i not in fe.dofs["n0"]]
+    lowest = scipy.linalg.eigh(fe.stiffness[np.ix_(free, free)], fe.mass[np.ix_(free, free)], eigvals_only=True)[0]
+    with np.errstate(all="ignore"), pytest.raises(ModelError, match="no statically stable equilibrium") as info:
+        ctmm.natural_frequencies(model, n_modes=3)
+    stated = float(re.search(r"omega\^2 = (\S+) rad", str(info.value)).group(1))
+    assert lowest < 0.0 and stated == pytest.approx(lowest, rel=1e-5)
+    assert "operating_point" in str(info.value)
 
 
 def test_axial_frequencies_and_euler_buckling_load():

@@ -182,3 +182,13 @@ def test_generated_code_runs_the_subsystem_as_the_numpy_sweep():
     q, _ = histories(result, model)
     _, q_ref, _ = reference.rk4(q0, np.zeros_like(q0), 0.02, 1e-3)
     assert np.max(np.abs(q - q_ref)) < 1e-9
+
+
+def test_generated_code_refuses_a_subsystems_nonlinear_force_by_name():
+    """The documented contract (docs/mixed.md §7: a nonlinear_force is Python code, refused by the generated path):
+    the refusal names the subsystem and its nonlinear_force, not 'time-dependent loads on a beam' with advice to
+    use ctmm.signals, which cannot express a state law."""
+    model, _ = build(force=cubic_tip_spring)
+    with pytest.raises(ctmm.ModelError, match=r"subsystems with a nonlinear_force: 'flex'.*compiled=False") as info:
+        ctmm.simulate(model, 0.01, 1e-3, method="rk4", x0=initial_state(model), compiled=True)
+    assert "ctmm.signals" not in str(info.value)

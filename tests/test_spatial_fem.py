@@ -102,6 +102,15 @@ def test_nonlinear_force_matches_global_model():
         assert np.max(np.abs(a - a_ref)) < 1e-10 * np.max(np.abs(a_ref))
 
 
+def test_generated_code_refuses_a_subsystems_nonlinear_force_by_name():
+    """docs/mixed.md §7: a nonlinear_force is Python code and is refused by compiled=True -- by its name, not as
+    'modal forces or distributed load' of a beam with advice to use ctmm.signals (which cannot state a law)."""
+    model, _ = chain(force=lambda u, ud: -1e3 * u)
+    with pytest.raises(ModelError, match=r"subsystems with a nonlinear_force: 'frame'.*without compiled=True") as info:
+        ctmm.simulate(model, 0.01, 1e-3, method="rk4", compiled=True)
+    assert "ctmm.signals" not in str(info.value)
+
+
 @pytest.mark.parametrize("compiled", [False, True])
 def test_rk4_history_matches_global_model(compiled):
     model, ref = chain(child=False)

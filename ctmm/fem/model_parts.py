@@ -11,6 +11,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError
+from ..spatial_frequency import rayleigh_modes
 
 __all__ = ["TwoNodeSpring", "node_name", "node_positions", "checked_elements", "rayleigh_pair", "number_dofs", "check_springs",
            "square_matrix", "clamped_frequencies", "known_nodes", "subsystem_nodes", "subsystem_boundary",
@@ -162,9 +163,8 @@ def lumped_masses(owner: str, M: np.ndarray, couplings: str, model: str, record:
 
 def clamped_frequencies(owner: str, stiffness: np.ndarray, mass: np.ndarray, dofs: Mapping[str, tuple],
                         clamped: Sequence[str]) -> np.ndarray:
-    """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""
-    from scipy.linalg import eigh
-
+    """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``, Rayleigh quotients);
+    a mode with ``omega^2`` below minus its round-off (``rayleigh_modes``) is refused (statically unstable)."""
     clamped = known_nodes(owner, "clamped", clamped, dofs, allow_empty=True)
     held = {i for node in clamped for i in dofs[node]}
     keep = [i for i in range(stiffness.shape[0]) if i not in held]
@@ -174,7 +174,13 @@ def clamped_frequencies(owner: str, stiffness: np.ndarray, mass: np.ndarray, dof
                     and any(mass[i, i] <= 0.0 for i in node_dofs)] or "none on the diagonal, but M is singular"
         raise ModelError(f"{owner}: natural frequencies need a positive definite mass matrix on the free DOFs; "
                          f"nodes without mass: {massless}; clamp them (clamped=...) or give them mass (PointMass)")
-    values = eigh(stiffness[np.ix_(keep, keep)], free_mass, eigvals_only=True)
+    values, _, noise = rayleigh_modes(stiffness[np.ix_(keep, keep)], free_mass)
+    unstable = values < -noise
+    if np.any(unstable):
+        raise ModelError(f"{owner}: statically unstable with {list(clamped)} clamped: {int(np.sum(unstable))} mode(s) "
+                         f"with negative stiffness (omega^2 = {values[unstable].tolist()} rad^2/s^2 < 0, e.g. a "
+                         "compressive axial_force above the buckling load); natural frequencies exist only for a "
+                         "stable structure")
     return np.sqrt(np.clip(values, 0.0, None))
 
 

@@ -152,5 +152,6 @@ class NodalModel:
         raise NotImplementedError
 
     def natural_frequencies(self, clamped: Sequence[str] = ()) -> np.ndarray:
-        """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""
+        """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``); a statically
+        unstable structure (e.g. compressed above buckling) is refused with :class:`~ctmm.errors.ModelError`."""
         return clamped_frequencies(self.name, self.stiffness, self.mass, self.dofs, clamped)

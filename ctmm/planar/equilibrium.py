@@ -14,7 +14,7 @@ import scipy.integrate
 import scipy.optimize
 
 from ..capabilities import require_planar
-from ..errors import ModelError
+from ..errors import ModelError, SimulationError
 from .body_forms import PlanarScene
 from .model import PlanarModel
 from .sweep import accelerations
@@ -323,8 +323,15 @@ def _descend(model: PlanarModel, q: np.ndarray, direction: np.ndarray, rate: flo
     settled.terminal = True
     start = q + 1e-3 * direction / max(float(np.max(np.abs(direction))), 1e-300)
     horizon = 1e4 / rate           # escape takes ~ ln(1e3) / rate; the descent towards the stable point its own rate
-    solution = scipy.integrate.solve_ivp(flow, (0.0, horizon), start, method="Radau", events=settled,
-                                         rtol=1e-6, atol=1e-9)
+    try:
+        solution = scipy.integrate.solve_ivp(flow, (0.0, horizon), start, method="Radau", events=settled,
+                                             rtol=1e-6, atol=1e-9)
+    except SimulationError as error:
+        raise ModelError(f"no statically stable equilibrium of {model.name!r} found: the descent from the unstable "
+                         f"equilibrium q = {q.tolist()} along its direction of negative stiffness (omega^2 = "
+                         f"{-rate:.6g} rad^2/s^2) ran away ({error}); the model may have no stable equilibrium (e.g. a "
+                         "subsystem compressed above its buckling load); pass operating_point=(q, qdot) to linearise "
+                         "about a chosen state") from error
     return solution.y[:, -1]
 
 
