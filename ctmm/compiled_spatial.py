@@ -527,9 +527,7 @@ def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *
     store_every = validation.integer("store_every", store_every, minimum=1)
     if divergence_bound is not None:
         divergence_bound = validation.positive("divergence_bound", divergence_bound)
-    n_steps = int(round(t_final / dt))
-    if n_steps < 1 or abs(n_steps * dt - t_final) > 1e-9 * t_final:
-        raise ModelError(f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}")
+    n_steps = validation.whole_step_count(t_final, dt)
     reason = spatial_compile_refusal(model, time_signals=True)
     if reason:
         raise ModelError(f"compiled=True: {reason}")

@@ -148,10 +148,7 @@ def step_total(t_final: float, dt: float) -> int:
     t_final = validation.positive("t_final", t_final)
     dt = validation.positive("dt", dt)
     validation.step_count(t_final, 0.0, dt)
-    n = int(round(t_final / dt))
-    if n < 1 or abs(n * dt - t_final) > 1e-9 * t_final:
-        raise ModelError(f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}")
-    return n
+    return validation.whole_step_count(t_final, dt)
 
 
 def check_store_every(store_every: int) -> int:

@@ -273,9 +273,7 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
         if dt is None:
             raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
         dt = validation.positive("dt", dt)
-        n = int(round(t_final / dt))
-        if n < 1 or abs(n * dt - t_final) > 1e-9 * t_final:
-            raise ModelError(f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}")
+        n = validation.whole_step_count(t_final, dt)
         info = {"dt": dt}
         times, states = [0.0], [x.copy()]
         for step in range(n):
